@@ -1,0 +1,77 @@
+"""Command line: python -m contact [options]; see USAGE."""
+import os
+import sys
+import time
+
+from petsc4py import PETSc
+
+from . import output, report, scene as scenes
+from .loop import ConvergenceError
+from .mesh import MeshError
+from .problem import ContactProblem
+
+USAGE = """\
+contact: 3D frictional contact of an elastic body on a rigid foundation (duality method)
+Scene and problem:
+  -scene FILE            scene YAML (default runs/paper_beam.yaml)
+  -nd N                  mesh parameter: (cells_per_nd * N) hexahedra
+  -friction F            Coulomb coefficient (number or expression in x, y, z)
+  -young E  -poisson NU  material
+  -uzawa_r R             parameter r of the modified Lagrangian
+  -scene_<path> VALUE    any other scalar of the scene, e.g. -scene_boundary_top_traction_2 -40
+  -output_dir DIR        results (default runs/out/<scene>-nd<N>/)
+Loops (prefix P = fp_, uzawa_, apg_):
+  -P_rtol TOL  -P_max_it N  -P_monitor  -P_monitor_stride N  -P_converged_reason
+  -P_error_if_not_converged false      go on (and report converged: false) at the limit
+  -fp_warm_start         start each Uzawa run from the previous (x, l)
+  -apg_lipschitz_its N  -apg_lipschitz_margin M   power iteration for L >= lambda_max(A)
+Linear solves (no contact part): -elastic_ksp_type, -elastic_pc_type, ...
+Mesh distribution: -petscpartitioner_type (default: ParMETIS if PETSc has it, else METIS)
+Other: -dm_vec_type, -dm_mat_type (e.g. cuda / aijcusparse), -log_view, -debug
+"""
+
+
+class UsageError(ValueError):
+    pass
+
+
+def _error(comm, msg):
+    if comm.getRank() == 0:
+        print(f"contact: error: {msg}", file=sys.stderr, flush=True)
+
+
+def run(comm=None):
+    """Solve the scene named by the options database; returns the summary dict."""
+    comm = comm or PETSc.COMM_WORLD
+    t0 = time.perf_counter()
+    opts = PETSc.Options()
+    sc = scenes.from_options(opts)
+    outdir = opts.getString("output_dir",
+                            os.path.join("runs", "out", f"{sc['name']}-nd{sc['mesh']['nd']}"))
+    output.prepare_dir(comm.tompi4py(), outdir)
+    problem = ContactProblem(sc, comm).solve()
+    s = report.summary(problem, time.perf_counter() - t0)
+    stage = PETSc.Log.Stage("Output")
+    stage.push()
+    output.write_results(problem, outdir, s)
+    stage.pop()
+    report.print_summary(comm, s, outdir)
+    return s
+
+
+def main(argv=None):
+    comm = PETSc.COMM_WORLD
+    opts = PETSc.Options()
+    if opts.hasName("help"):
+        if comm.getRank() == 0:
+            print(USAGE)
+        return 0
+    debug = opts.getBool("debug", False)
+    try:
+        run(comm)
+    except (scenes.SceneError, MeshError, ConvergenceError, OSError, ValueError) as e:
+        if debug:
+            raise
+        _error(comm, str(e))
+        return 1
+    return 0

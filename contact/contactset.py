@@ -1,0 +1,125 @@
+"""The discrete contact set on Gamma_c.
+
+Contact nodes j in P: the vertices of the contact faces whose normal dof is not clamped.
+For each, the lumped (trapezoidal) weight w_j = int_{Gamma_c} N_j ds, the friction
+coefficient F_j, and the dofs of its normal and tangential components. The foundation is
+{x3 <= 0} with outward normal nu = (0,0,-1): x_j . nu = -x_j3, x_j,tau = (x_j1, x_j2).
+
+Contact-space quantities (l, g, w, F, ...) are PETSc Vecs of the contact nodes owned by
+each rank; `gather_*` / `scatter_*` move the normal and tangential components between a
+displacement Vec and contact Vecs with VecScatter (so they stay on the device on GPUs).
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem
+
+FORWARD = PETSc.ScatterMode.FORWARD
+REVERSE = PETSc.ScatterMode.REVERSE
+INSERT = PETSc.InsertMode.INSERT_VALUES
+ADD = PETSc.InsertMode.ADD_VALUES
+
+
+def friction_values(spec, xyz):
+    """F_j from a number or an expression in x, y, z (NumPy), e.g. 'where(x < 1.5, 0.3, 0)'."""
+    if isinstance(spec, (int, float)):
+        return np.full(xyz.shape[0], float(spec))
+    names = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "where": np.where,
+             "abs": np.abs, "sqrt": np.sqrt, "minimum": np.minimum, "maximum": np.maximum,
+             "pi": np.pi, "sin": np.sin, "cos": np.cos, "exp": np.exp}
+    vals = eval(str(spec), {"__builtins__": {}}, names)          # scene files are trusted input
+    return np.broadcast_to(np.asarray(vals, dtype=float), (xyz.shape[0],)).copy()
+
+
+class ContactSet:
+    """Contact nodes, weights w, friction F and the scatters to contact space."""
+
+    def __init__(self, dm, coords, faces, clamped_rows, friction, template):
+        comm = dm.getComm()
+        nv = coords.shape[0]
+        # per vertex: [on a contact face, -, lumped weight]; summed over ranks
+        loc = np.zeros((nv, 3))
+        if faces.shape[0]:
+            loc[np.unique(faces.ravel()), 0] = 1.0
+        loc[:, 2] = fem.nodal_face_weights(faces, coords)
+        g = fem.local_to_global(dm, loc.ravel())
+        owned = g.getArray(readonly=True).reshape(-1, 3).copy()
+        rstart = g.getOwnershipRange()[0]
+        g.destroy()
+        xyz = fem.global_coordinates(dm, coords)
+        owned_xyz = xyz.getArray(readonly=True).reshape(-1, 3).copy()
+        xyz.destroy()
+
+        on_face = owned[:, 0] > 0.0
+        #: n_d as the paper counts it (all nodes of the contact face, clamped ones too)
+        self.n_paper = comm.tompi4py().allreduce(int(on_face.sum())) if comm.getSize() > 1 \
+            else int(on_face.sum())
+        zdofs = rstart + 3 * np.flatnonzero(on_face) + 2
+        active = on_face.copy()
+        active[np.flatnonzero(on_face)[np.isin(zdofs, clamped_rows)]] = False
+        nodes = np.flatnonzero(active)
+        self.local_size = nodes.size
+        self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in range(3)]
+        self.coordinates = owned_xyz[nodes]                      # (m_local, 3), for output
+
+        self.template = self.create_vec(comm, template)
+        self.size = self.template.getSize()
+        self.w = self.vec(owned[nodes, 2])
+        F = friction_values(friction, owned_xyz[nodes])
+        if np.any(~np.isfinite(F)) or np.any(F < 0.0):
+            raise ValueError("friction coefficient must be finite and >= 0 on the contact face")
+        self.F = self.vec(F)
+        self.has_friction = self.F.norm(PETSc.NormType.INFINITY) > 0.0
+        self.zero = self.vec(0.0)
+        self._scatters = []
+        for c in range(3):
+            is_ = PETSc.IS().createGeneral(self.dofs[c], comm=comm)
+            self._scatters.append(PETSc.Scatter().create(template, is_, self.template, None))
+            is_.destroy()
+
+    def create_vec(self, comm, template):
+        v = PETSc.Vec().create(comm=comm)
+        v.setSizes((self.local_size, PETSc.DECIDE))
+        v.setType(template.getType())
+        v.setUp()
+        return v
+
+    def vec(self, values=None):
+        """A new contact-space Vec (zero, constant, or from owned NumPy values)."""
+        v = self.template.duplicate()
+        if values is None:
+            v.set(0.0)
+        elif np.isscalar(values):
+            v.set(float(values))
+        else:
+            v.setArray(np.asarray(values, dtype=float))
+        return v
+
+    def gather(self, x, out, comp):
+        """out <- x[comp dofs of contact nodes], comp 0, 1 (tangential) or 2 (x3)."""
+        self._scatters[comp].scatter(x, out, INSERT, FORWARD)
+
+    def scatter(self, c, x, comp, mode=INSERT):
+        """x[comp dofs] <- c (INSERT) or += c (ADD)."""
+        self._scatters[comp].scatter(c, x, mode, REVERSE)
+
+    def normal_displacement(self, x, out):
+        """u_nu = x . nu = -x3 at the contact nodes."""
+        self.gather(x, out, 2)
+        out.scale(-1.0)
+        return out
+
+    def tangential_norm(self, x, t1, t2, out):
+        """|x_tau| = sqrt(x1^2 + x2^2) per contact node; t1, t2 are left holding x1, x2."""
+        self.gather(x, t1, 0)
+        self.gather(x, t2, 1)
+        out.pointwiseMult(t1, t1)
+        t2sq = t2.duplicate()
+        t2sq.pointwiseMult(t2, t2)
+        out.axpy(1.0, t2sq)
+        t2sq.destroy()
+        out.sqrtabs()
+        return out
+
+    def local_array(self, v):
+        return v.getArray(readonly=True).copy()

@@ -1,0 +1,206 @@
+"""Q1 (trilinear hexahedron) linear elasticity: element matrices, assembly, loads.
+
+a(u, v) = int_Omega sigma(u) : eps(v) dx, sigma = lambda tr(eps) I + 2 mu eps,
+b(v)    = int_Omega f . v dx + int_Gamma_n p . v ds.
+Element matrices use 2x2x2 Gauss points and are computed for all cells at once (NumPy
+einsum over chunks of cells); face integrals use 2x2 Gauss points on the bilinear face.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from .mesh import HEX_REF, MeshError
+
+_G = 1.0 / np.sqrt(3.0)
+_GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
+_GP2 = np.array([[a, b] for a in (-_G, _G) for b in (-_G, _G)])
+_QUAD_REF = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+
+#: cells per chunk when computing element matrices (bounds memory: 4.6 kB per cell)
+CHUNK = 20000
+
+
+def lame(young, poisson):
+    """Lame constants (lambda, mu) from Young's modulus E and Poisson's ratio nu."""
+    lam = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson))
+    mu = young / (2.0 * (1.0 + poisson))
+    return lam, mu
+
+
+def _hex_shape_grads():
+    """dN_a/dxi_i at the 8 Gauss points: (8 gp, 8 nodes, 3)."""
+    xi = _GP3[:, None, :]              # (g, 1, 3)
+    ref = HEX_REF[None, :, :]          # (1, a, 3)
+    fac = 1.0 + xi * ref               # (g, a, 3)
+    d = np.empty((8, 8, 3))
+    d[..., 0] = ref[..., 0] * fac[..., 1] * fac[..., 2] / 8.0
+    d[..., 1] = ref[..., 1] * fac[..., 0] * fac[..., 2] / 8.0
+    d[..., 2] = ref[..., 2] * fac[..., 0] * fac[..., 1] / 8.0
+    return d
+
+
+def _hex_shape_values():
+    """N_a at the 8 Gauss points: (8 gp, 8 nodes)."""
+    return np.prod(1.0 + _GP3[:, None, :] * HEX_REF[None, :, :], axis=2) / 8.0
+
+
+_DN = _hex_shape_grads()
+_N = _hex_shape_values()
+
+
+def _geometry(X):
+    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, 8, 3)."""
+    J = np.einsum("gai,caj->cgij", _DN, X)            # J_ij = dx_j / dxi_i
+    det = np.linalg.det(J)
+    if np.any(det <= 0.0):
+        bad = int(np.argmin(det.min(axis=1)))
+        raise MeshError(f"inverted or degenerate hexahedron (local cell {bad}, det J = {det.min():.3e})")
+    dNdx = np.linalg.solve(J[:, :, None, :, :], _DN[None, :, :, :, None])[..., 0]
+    return dNdx, det
+
+
+def element_stiffness(X, lam, mu):
+    """Element stiffness matrices K_e (c, 24, 24), dof order 3 a + i."""
+    dNdx, wdet = _geometry(X)
+    K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+    K += mu * np.einsum("cgaj,cgbi,cg->caibj", dNdx, dNdx, wdet)
+    lap = mu * np.einsum("cgak,cgbk,cg->cab", dNdx, dNdx, wdet)
+    K[:, :, 0, :, 0] += lap
+    K[:, :, 1, :, 1] += lap
+    K[:, :, 2, :, 2] += lap
+    return K.reshape(-1, 24, 24)
+
+
+def element_volume_weights(X):
+    """int_e N_a dx for cells X: (c, 8)."""
+    _, wdet = _geometry(X)
+    return np.einsum("ga,cg->ca", _N, wdet)
+
+
+def face_weights(Xf):
+    """int_face N_a ds for bilinear quadrilateral faces Xf (f, 4, 3): (f, 4).
+
+    For rectangles this is area/4 per corner: the trapezoidal (lumped) rule.
+    """
+    s, t = _GP2[:, 0], _GP2[:, 1]
+    N = (1 + s[:, None] * _QUAD_REF[None, :, 0]) * (1 + t[:, None] * _QUAD_REF[None, :, 1]) / 4
+    dNs = _QUAD_REF[None, :, 0] * (1 + t[:, None] * _QUAD_REF[None, :, 1]) / 4
+    dNt = _QUAD_REF[None, :, 1] * (1 + s[:, None] * _QUAD_REF[None, :, 0]) / 4
+    xs = np.einsum("ga,fai->fgi", dNs, Xf)
+    xt = np.einsum("ga,fai->fgi", dNt, Xf)
+    area = np.linalg.norm(np.cross(xs, xt), axis=2)     # (f, g)
+    return np.einsum("ga,fg->fa", N, area)
+
+
+def nodal_face_weights(faces, coords):
+    """Per local vertex: sum over the given faces of int N_a ds. (nv,)"""
+    w = np.zeros(coords.shape[0])
+    if faces.shape[0]:
+        np.add.at(w, faces.ravel(), face_weights(coords[faces]).ravel())
+    return w
+
+
+def assemble_stiffness(dm, conn, coords, young, poisson):
+    """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained."""
+    lam, mu = lame(young, poisson)
+    A = dm.createMatrix()
+    A.setBlockSize(3) if A.getBlockSize() != 3 else None
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    idx_type = PETSc.IntType
+    for s in range(0, conn.shape[0], CHUNK):
+        c = conn[s:s + CHUNK]
+        Ke = element_stiffness(coords[c], lam, mu)
+        A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
+                                   Ke.reshape(c.shape[0], -1), addv=PETSc.InsertMode.ADD_VALUES)
+    A.assemble()
+    return A
+
+
+def local_to_global(dm, local_array, gvec=None):
+    """Sum a local (owned + ghost) dof array into a global Vec (ADD_VALUES)."""
+    lvec = dm.getLocalVec()
+    lvec.setArray(local_array)
+    if gvec is None:
+        gvec = dm.createGlobalVec()
+    gvec.set(0.0)
+    dm.localToGlobal(lvec, gvec, addv=PETSc.InsertMode.ADD_VALUES)
+    dm.restoreLocalVec(lvec)
+    return gvec
+
+
+def load_vector(dm, conn, coords, tractions, body_force):
+    """b: tractions [(faces (nf,4), p (3,))] and a constant body force f (3,)."""
+    nv = coords.shape[0]
+    loc = np.zeros((nv, 3))
+    for faces, p in tractions:
+        p = np.asarray(p, dtype=float)
+        if faces.shape[0] and np.any(p != 0.0):
+            loc += nodal_face_weights(faces, coords)[:, None] * p[None, :]
+    f = np.asarray(body_force, dtype=float)
+    if np.any(f != 0.0) and conn.shape[0]:
+        wv = np.zeros(nv)
+        for s in range(0, conn.shape[0], CHUNK):
+            c = conn[s:s + CHUNK]
+            np.add.at(wv, c.ravel(), element_volume_weights(coords[c]).ravel())
+        loc += wv[:, None] * f[None, :]
+    return local_to_global(dm, loc.ravel())
+
+
+def global_coordinates(dm, coords):
+    """Global Vec of nodal coordinates in the displacement layout (block size 3)."""
+    lvec = dm.getLocalVec()
+    lvec.setArray(coords.ravel())
+    g = dm.createGlobalVec()
+    dm.localToGlobal(lvec, g, addv=PETSc.InsertMode.INSERT_VALUES)
+    dm.restoreLocalVec(lvec)
+    g.setBlockSize(3)
+    return g
+
+
+def dirichlet_rows(dm, nv, constraints):
+    """Owned global rows of clamped dofs. constraints: [(faces (nf,4), components)]."""
+    loc = np.zeros((nv, 3))
+    for faces, comps in constraints:
+        if faces.shape[0]:
+            loc[np.unique(faces.ravel())[:, None], np.asarray(comps)[None, :]] = 1.0
+    g = local_to_global(dm, loc.ravel())
+    rstart = g.getOwnershipRange()[0]
+    rows = rstart + np.flatnonzero(g.getArray(readonly=True) > 0.0)
+    g.destroy()
+    return rows.astype(PETSc.IntType)
+
+
+def eliminate_dirichlet(A, b, rows):
+    """Eliminate clamped dofs (u = 0): zero rows and columns, keep a scaled diagonal.
+
+    The diagonal value is the mean diagonal of A, so the spectrum keeps its scale; b is
+    zero on those rows. Iterates started at 0 stay exactly 0 there.
+    """
+    d = A.getDiagonal()
+    scale = d.sum() / d.getSize()
+    d.destroy()
+    x = A.createVecRight()
+    x.set(0.0)
+    A.zeroRowsColumns(rows, diag=scale, x=x, b=b)
+    x.destroy()
+    return scale
+
+
+def configure_elasticity(A, coordinates):
+    """Block size 3, SPD flag and the rigid-body near-nullspace on A."""
+    A.setOption(PETSc.Mat.Option.SPD, True)
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    ns = PETSc.NullSpace().createRigidBody(coordinates)
+    A.setNearNullSpace(ns)
+    return ns
+
+
+def elasticity_ksp(A, prefix="elastic_", rtol=1e-10):
+    """CG + GAMG for A (options prefix `prefix` so the command line wins)."""
+    ksp = PETSc.KSP().create(comm=A.getComm())
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    ksp.setType(PETSc.KSP.Type.CG)
+    ksp.getPC().setType(PETSc.PC.Type.GAMG)
+    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
+    ksp.setFromOptions()
+    return ksp

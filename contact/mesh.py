@@ -1,0 +1,165 @@
+"""Hexahedral meshes on DMPlex: creation, METIS distribution, cell-vertex connectivity.
+
+The mesh is kept *uninterpolated* (cells and vertices only), so the cone of a cell is
+its 8 vertices in PETSc's reference order for the hexahedron
+
+    0 (-1,-1,-1)  1 (-1, 1,-1)  2 ( 1, 1,-1)  3 ( 1,-1,-1)
+    4 (-1,-1, 1)  5 ( 1,-1, 1)  6 ( 1, 1, 1)  7 (-1, 1, 1)
+
+Boundary parts are found geometrically from the faces of the cells (see `boundary_faces`).
+"""
+import ctypes
+
+import numpy as np
+from petsc4py import PETSc
+
+#: reference coordinates (xi, eta, zeta) of the 8 vertices, in cone order
+HEX_REF = np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, -1], [1, -1, -1],
+                    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+
+#: the 6 faces of the hexahedron as cyclic vertex quadruples (local cone positions)
+HEX_FACES = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 3, 5, 4],
+                      [1, 7, 6, 2], [0, 4, 7, 1], [3, 2, 6, 5]], dtype=np.intp)
+
+
+class MeshError(ValueError):
+    """Bad mesh or mesh input."""
+
+
+def create_box_mesh(comm, cells, lower, upper):
+    """Serial-on-rank-0 DMPlex box of hexahedra, `cells` = (nx, ny, nz)."""
+    cells = [int(c) for c in cells]
+    if min(cells) < 1:
+        raise MeshError(f"box mesh needs at least one cell per direction, got {cells}")
+    return PETSc.DMPlex().createBoxMesh(cells, lower=list(lower), upper=list(upper),
+                                        simplex=False, interpolate=False, comm=comm)
+
+
+def _cell_dual_graph(conn):
+    """CSR (xadj, adjncy) of cells sharing a face, from the (nc, 8) connectivity."""
+    nc = conn.shape[0]
+    faces = np.sort(conn[:, HEX_FACES], axis=2).reshape(-1, 4)       # (6 nc, 4)
+    owner = np.repeat(np.arange(nc), 6)
+    _, inv, cnt = np.unique(faces, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    shared = cnt[inv] == 2
+    order = np.argsort(inv[shared], kind="stable")
+    pairs = owner[shared][order].reshape(-1, 2)
+    rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    cols = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    perm = np.argsort(rows, kind="stable")
+    xadj = np.zeros(nc + 1, dtype=np.int64)
+    np.add.at(xadj, rows + 1, 1)
+    return np.cumsum(xadj), cols[perm]
+
+
+def _metis_shell_partitioner(dm):
+    """METIS (pymetis) on rank 0 handed to PETSc's shell partitioner."""
+    import pymetis  # only needed when PETSc lacks ParMETIS
+
+    comm = dm.getComm()
+    size = comm.getSize()
+    part = PETSc.Partitioner().create(comm=comm)
+    part.setType(PETSc.Partitioner.Type.SHELL)
+    if comm.getRank() == 0:
+        conn = cell_vertices(dm)[0]
+        xadj, adjncy = _cell_dual_graph(conn)
+        _, membership = pymetis.part_graph(size, xadj=xadj, adjncy=adjncy)
+        membership = np.asarray(membership)
+        points = np.argsort(membership, kind="stable").astype(PETSc.IntType)
+        sizes = np.bincount(membership, minlength=size).astype(PETSc.IntType)
+    else:
+        points = np.zeros(0, dtype=PETSc.IntType)
+        sizes = np.zeros(size, dtype=PETSc.IntType)
+    part.setShellPartition(size, sizes, points)
+    return part
+
+
+def _has_parmetis():
+    """PETSc registers 'parmetis' even when built without it: ask for the package."""
+    try:
+        return bool(PETSc.Sys.hasExternalPackage("parmetis"))
+    except AttributeError:
+        return False
+
+
+def distribute(dm):
+    """Distribute `dm` over its communicator with METIS.
+
+    ParMETIS through PETSc where PETSc has it, otherwise METIS (pymetis) on rank 0 through
+    the shell partitioner; ``-petscpartitioner_type`` on the command line wins either way.
+    Returns the partitioner type that was used.
+    """
+    comm = dm.getComm()
+    if comm.getSize() == 1:
+        return "none"
+    opts = PETSc.Options()
+    if opts.hasName("petscpartitioner_type"):
+        part = PETSc.Partitioner().create(comm=comm)
+        part.setFromOptions()
+    elif _has_parmetis():
+        part = PETSc.Partitioner().create(comm=comm)
+        part.setType("parmetis")
+        part.setFromOptions()
+    else:
+        part = _metis_shell_partitioner(dm)
+    dm.setPartitioner(part)
+    dm.distribute()
+    return part.getType()
+
+
+def _cones_ctypes(dm, ncells):
+    lib = ctypes.CDLL(PETSc.__file__)          # libpetsc is a dependency: dlsym finds it
+    ctype = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+    ptr = ctypes.POINTER(ctype)()
+    ierr = lib.DMPlexGetCones(ctypes.c_void_p(dm.handle), ctypes.byref(ptr))
+    if ierr != 0:
+        raise PETSc.Error(ierr)
+    return np.ctypeslib.as_array(ptr, shape=(8 * ncells,)).copy()
+
+
+def cell_vertices(dm):
+    """Local cell-vertex connectivity.
+
+    Returns (conn, coords): conn (nc, 8) local vertex indices (vertex point - vStart) in
+    reference order, coords (nv, 3) local vertex coordinates (owned and ghost).
+    Cones of all cells are read in one call (DMPlexGetCones), not cell by cell.
+    """
+    cs, ce = dm.getHeightStratum(0)
+    vs, ve = dm.getDepthStratum(0)
+    nc = ce - cs
+    if nc and dm.getConeSize(cs) != 8:
+        raise MeshError(f"cell {cs} has {dm.getConeSize(cs)} vertices; only hexahedra are supported")
+    coords = dm.getCoordinatesLocal().getArray().reshape(-1, 3).copy()
+    if nc == 0:
+        return np.zeros((0, 8), dtype=np.intp), coords
+    try:
+        flat = _cones_ctypes(dm, nc)
+    except (OSError, AttributeError):
+        flat = np.concatenate([dm.getCone(c) for c in range(cs, ce)])   # slow fallback
+    conn = flat.reshape(nc, 8).astype(np.intp) - vs
+    return conn, coords
+
+
+def boundary_faces(conn, coords, axis, value, tol=1e-9):
+    """Cell faces lying on the plane x[axis] = value.
+
+    Returns (nf, 4) local vertex indices, cyclic order. On a box, such faces are boundary
+    faces; each belongs to one cell and so to one rank.
+    """
+    if conn.shape[0] == 0:
+        return np.zeros((0, 4), dtype=np.intp)
+    faces = conn[:, HEX_FACES].reshape(-1, 4)
+    on = np.all(np.abs(coords[faces, axis] - value) <= tol, axis=1)
+    return faces[on]
+
+
+def displacement_section(dm):
+    """Section with 3 dofs on every vertex (a copy of the coordinate section's layout)."""
+    sec = dm.getCoordinateSection().clone()
+    vs, ve = dm.getDepthStratum(0)
+    if sec.getChart() != (vs, ve) or sec.getStorageSize() != 3 * (ve - vs):
+        raise MeshError("unexpected coordinate layout: coordinates must be 3 per vertex")
+    setter = getattr(dm, "setLocalSection", None) or dm.setSection
+    setter(sec)
+    return sec

@@ -1,0 +1,165 @@
+"""Results on disk: solution.h5, solution.xdmf (ParaView), summary.json.
+
+Nodes are written in a canonical order that does not depend on the partition: sorted
+lexicographically by (z, y, x) coordinates. Data are gathered to rank 0 once, after the
+solve, and each file is written to a temporary name and renamed, so a failed or
+interrupted run leaves no half-written file.
+"""
+import json
+import os
+
+import numpy as np
+from mpi4py import MPI
+
+from . import residuals as res
+
+#: PETSc hexahedron vertex order -> VTK/XDMF hexahedron order
+PETSC_TO_VTK_HEX = np.array([0, 3, 2, 1, 4, 5, 6, 7])
+
+
+def _gatherv(comm, a):
+    parts = comm.gather(np.ascontiguousarray(a), root=0)
+    return np.concatenate(parts) if comm.rank == 0 else None
+
+
+def canonical_order(xyz):
+    """Permutation sorting points by (z, y, x)."""
+    return np.lexsort((xyz[:, 0], xyz[:, 1], xyz[:, 2]))
+
+
+def gather_nodes(problem, x=None):
+    """On rank 0: coordinates (n,3), displacement (n,3), cells (nc,8) in canonical order."""
+    comm = problem.comm.tompi4py()
+    x = x if x is not None else problem.x
+    xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
+    u = x.getArray(readonly=True).reshape(-1, 3)
+    rstart = problem.coordinates.getOwnershipRange()[0] // 3
+    gid = rstart + np.arange(xyz.shape[0])
+    lg = problem.dm.getLGMap().getBlockIndices()              # local vertex -> global node
+    cells = lg[problem.conn] if problem.conn.size else np.zeros((0, 8), dtype=int)
+    XYZ, U, GID, CELLS = (_gatherv(comm, a) for a in (xyz, u, gid, cells))
+    if comm.rank != 0:
+        return None
+    order = canonical_order(XYZ)
+    canon = np.empty(GID.max() + 1, dtype=np.int64)
+    canon[GID[order]] = np.arange(order.size)
+    C = canon[CELLS]
+    C = C[np.lexsort(np.sort(C, axis=1).T[::-1])]              # cells in a canonical order too
+    return XYZ[order], U[order], C
+
+
+def gather_contact(problem, x=None):
+    """On rank 0: contact coordinates, pressure g = l, slip |u_tau|, status (canonical order)."""
+    comm = problem.comm.tompi4py()
+    cs = problem.cs
+    if cs is None or cs.size == 0:
+        return None if comm.rank else {k: np.zeros((0, 3) if k == "coordinates" else 0)
+                                       for k in ("coordinates", "pressure", "slip", "status")}
+    f = res.contact_fields(problem, x)
+    pressure = f["l"]
+    slip = np.linalg.norm(f["u"][:, :2], axis=1)
+    umax = res.max_displacement(comm, x if x is not None else problem.x)
+    status = np.where(pressure > 0.0, np.where(slip > 1e-6 * max(umax, 1e-300), 2, 1), 0)
+    data = {k: _gatherv(comm, v) for k, v in (("coordinates", cs.coordinates),
+                                              ("pressure", pressure), ("slip", slip),
+                                              ("status", status.astype(np.int8)))}
+    if comm.rank != 0:
+        return None
+    order = canonical_order(data["coordinates"])
+    return {k: v[order] for k, v in data.items()}
+
+
+def _atomic(path):
+    return path + f".tmp{os.getpid()}"
+
+
+def write_hdf5(path, nodes, contact):
+    import h5py
+    xyz, u, cells = nodes
+    tmp = _atomic(path)
+    with h5py.File(tmp, "w") as f:
+        f["/mesh/coordinates"] = xyz
+        f["/mesh/topology"] = cells[:, PETSC_TO_VTK_HEX].astype(np.int64)
+        f["/fields/displacement"] = u
+        f["/fields/displacement_magnitude"] = np.linalg.norm(u, axis=1)
+        for k in ("coordinates", "pressure", "slip", "status"):
+            f[f"/contact/{k}"] = contact[k]
+    os.replace(tmp, path)
+
+
+def write_xdmf(path, h5name, n, nc, m):
+    grid_contact = f"""
+    <Grid Name="contact" GridType="Uniform">
+      <Topology TopologyType="Polyvertex" NumberOfElements="{m}" NodesPerElement="1"/>
+      <Geometry GeometryType="XYZ">
+        <DataItem Dimensions="{m} 3" NumberType="Float" Precision="8" Format="HDF">{h5name}:/contact/coordinates</DataItem>
+      </Geometry>
+      <Attribute Name="pressure" AttributeType="Scalar" Center="Node">
+        <DataItem Dimensions="{m}" NumberType="Float" Precision="8" Format="HDF">{h5name}:/contact/pressure</DataItem>
+      </Attribute>
+      <Attribute Name="slip" AttributeType="Scalar" Center="Node">
+        <DataItem Dimensions="{m}" NumberType="Float" Precision="8" Format="HDF">{h5name}:/contact/slip</DataItem>
+      </Attribute>
+      <Attribute Name="status" AttributeType="Scalar" Center="Node">
+        <DataItem Dimensions="{m}" NumberType="Int" Precision="1" Format="HDF">{h5name}:/contact/status</DataItem>
+      </Attribute>
+    </Grid>""" if m else ""
+    text = f"""<?xml version="1.0" ?>
+<Xdmf Version="3.0">
+  <Domain>
+    <Grid Name="body" GridType="Uniform">
+      <Topology TopologyType="Hexahedron" NumberOfElements="{nc}" NodesPerElement="8">
+        <DataItem Dimensions="{nc} 8" NumberType="Int" Precision="8" Format="HDF">{h5name}:/mesh/topology</DataItem>
+      </Topology>
+      <Geometry GeometryType="XYZ">
+        <DataItem Dimensions="{n} 3" NumberType="Float" Precision="8" Format="HDF">{h5name}:/mesh/coordinates</DataItem>
+      </Geometry>
+      <Attribute Name="displacement" AttributeType="Vector" Center="Node">
+        <DataItem Dimensions="{n} 3" NumberType="Float" Precision="8" Format="HDF">{h5name}:/fields/displacement</DataItem>
+      </Attribute>
+    </Grid>{grid_contact}
+  </Domain>
+</Xdmf>
+"""
+    tmp = _atomic(path)
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def write_json(path, data):
+    tmp = _atomic(path)
+    with open(tmp, "w") as f:
+        json.dump(data, f, indent=2)
+        f.write("\n")
+    os.replace(tmp, path)
+
+
+def prepare_dir(comm, outdir):
+    """Create the output directory on rank 0; one clear error for every rank if it fails."""
+    err = None
+    if comm.rank == 0:
+        try:
+            os.makedirs(outdir, exist_ok=True)
+            probe = os.path.join(outdir, f".write_test{os.getpid()}")
+            with open(probe, "w"):
+                pass
+            os.remove(probe)
+        except OSError as e:
+            err = f"cannot write to output directory {outdir}: {e.strerror}"
+    err = comm.bcast(err, root=0)
+    if err:
+        raise OSError(err)
+
+
+def write_results(problem, outdir, summary):
+    """All three files; collective, rank 0 writes."""
+    comm = problem.comm.tompi4py()
+    nodes = gather_nodes(problem)
+    contact = gather_contact(problem)
+    if comm.rank == 0:
+        write_hdf5(os.path.join(outdir, "solution.h5"), nodes, contact)
+        write_xdmf(os.path.join(outdir, "solution.xdmf"), "solution.h5", nodes[0].shape[0],
+                   nodes[2].shape[0], contact["pressure"].shape[0])
+        write_json(os.path.join(outdir, "summary.json"), summary)
+    comm.barrier()

@@ -1,0 +1,147 @@
+"""The discrete contact problem of a scene, and the solve that fits it.
+
+Setup: DMPlex box mesh (distributed with METIS), Q1 stiffness A with the clamped dofs
+eliminated, load b, contact set. Solve, computing only what the scene needs:
+  no contact part        -> one KSP solve (CG + GAMG),
+  contact, F = 0         -> Uzawa + APG without prox (no fixed point),
+  contact, F > 0         -> fixed point on g, Uzawa, APG with prox.
+"""
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem, mesh
+from .apg import APG
+from .contactset import ContactSet
+from .fixedpoint import FixedPoint
+from .scene import AXES
+from .uzawa import Uzawa
+
+
+class ContactProblem:
+    """Builds A, b and the contact set of `scene` on `comm`; `solve()` runs the loops."""
+
+    def __init__(self, scene, comm=None):
+        t0 = time.perf_counter()
+        self.scene = scene
+        self.comm = comm or PETSc.COMM_WORLD
+        stage = PETSc.Log.Stage("Setup")
+        stage.push()
+        try:
+            self._setup()
+        finally:
+            stage.pop()
+        self.time_setup = time.perf_counter() - t0
+
+    def _setup(self):
+        sc, comm = self.scene, self.comm
+        m = sc["mesh"]
+        self.nd = int(m.get("nd", 1))
+        cells = [int(c) * self.nd for c in m.get("cells_per_nd", [1, 1, 1])]
+        self.dm = dm = mesh.create_box_mesh(comm, cells, m["lower"], m["upper"])
+        self.partitioner = mesh.distribute(dm)
+        opts = PETSc.Options()
+        if opts.hasName("dm_vec_type"):
+            dm.setVecType(opts.getString("dm_vec_type"))
+        if opts.hasName("dm_mat_type"):
+            dm.setMatType(opts.getString("dm_mat_type"))
+        mesh.displacement_section(dm)
+        self.conn, self.coords = conn, coords = mesh.cell_vertices(dm)
+
+        parts = {}
+        for name, part in sc["boundary"].items():
+            axis, value = part["plane"]
+            parts[name] = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
+        self.parts = parts
+        mat = sc["material"]
+        self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"])
+        tractions = [(parts[n], p["traction"]) for n, p in sc["boundary"].items()
+                     if p["type"] == "traction"]
+        self.b = fem.load_vector(dm, conn, coords, tractions, sc.get("body_force", [0, 0, 0]))
+        constraints = [(parts[n], [AXES[c] for c in p["components"]])
+                       for n, p in sc["boundary"].items() if p["type"] == "dirichlet"]
+        self.clamped = fem.dirichlet_rows(dm, coords.shape[0], constraints)
+        self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
+        self.coordinates = fem.global_coordinates(dm, coords)
+        self.nullspace = fem.configure_elasticity(self.A, self.coordinates)
+        self.n_dofs = self.A.getSize()[0]
+
+        cfaces = [parts[n] for n, p in sc["boundary"].items() if p["type"] == "contact"]
+        self.has_contact_part = bool(cfaces)
+        if self.has_contact_part:
+            faces = np.concatenate(cfaces) if cfaces else np.zeros((0, 4), dtype=np.intp)
+            self.cs = ContactSet(dm, coords, faces, self.clamped,
+                                 sc.get("contact", {}).get("friction", 0.0), self.b)
+        else:
+            self.cs = None
+        self.x = self.A.createVecRight()
+        self.x.set(0.0)
+
+    # -- solve ---------------------------------------------------------------------------
+    def solve(self):
+        """Run what the scene needs; returns self with x (and l, g) set."""
+        t0 = time.perf_counter()
+        stage = PETSc.Log.Stage("Solve")
+        stage.push()
+        try:
+            if self.cs is None or self.cs.size == 0:
+                self.mode = "linear"
+                self._solve_linear()
+            else:
+                self._solve_contact()
+        finally:
+            stage.pop()
+        self.time_solve = time.perf_counter() - t0
+        return self
+
+    def _solve_linear(self):
+        ksp = fem.elasticity_ksp(self.A)
+        ksp.solve(self.b, self.x)
+        if ksp.getConvergedReason() < 0:
+            raise RuntimeError(f"linear elasticity KSP diverged: reason "
+                               f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} its")
+        self.ksp_iterations = ksp.getIterationNumber()
+        self.fp = self.uzawa = self.apg = None
+        self.l = self.g = None
+        ksp.destroy()
+
+    def _solve_contact(self):
+        sol = self.scene["solver"]
+        cs = self.cs
+        self.apg = APG(self.A, self.b, cs, sol["uzawa_r"], rtol=sol["apg_rtol"],
+                       max_it=int(sol.get("apg_max_it", 1000000)))
+        self.uzawa = Uzawa(self.apg, rtol=sol["uzawa_rtol"],
+                           max_it=int(sol.get("uzawa_max_it", 1000)))
+        self.apg.set_from_options()
+        self.uzawa.set_from_options()
+        self.l = cs.vec()
+        if cs.has_friction:
+            self.mode = "coulomb"
+            self.fp = FixedPoint(self.uzawa, rtol=sol["fp_rtol"],
+                                 max_it=int(sol.get("fp_max_it", 100)))
+            self.fp.set_from_options()
+            self.fp.solve(self.x, self.l)
+            self.g = self.fp.g                   # the slip bound of the final solve
+        else:
+            self.mode = "frictionless"
+            self.fp = None
+            self.uzawa.solve(self.x, self.l, None)
+            self.g = cs.vec()
+
+    @property
+    def converged(self):
+        loops = [lp for lp in (self.fp, self.uzawa, self.apg) if lp is not None]
+        return all(lp.converged for lp in loops)
+
+    def iterations(self):
+        """Table 1's counts: fixed point, Uzawa (total, mean per fixed-point step), APG."""
+        if self.apg is None:
+            return {"fixed_point": 0, "uzawa_total": 0, "uzawa_mean": 0.0,
+                    "apg_first": 0, "apg_total": 0}
+        fp = self.fp.iterations if self.fp is not None else 0
+        uz = self.uzawa.total_iterations
+        return {"fixed_point": fp, "uzawa_total": uz,
+                "uzawa_mean": uz / max(self.uzawa.calls, 1),
+                "apg_first": self.apg.first_iterations or 0,
+                "apg_total": self.apg.total_iterations}

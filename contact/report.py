@@ -1,0 +1,61 @@
+"""The run's summary: summary.json's dictionary and the Table-1-style console lines."""
+import petsc4py
+from petsc4py import PETSc
+
+from . import residuals as res
+
+
+def summary(problem, time_total):
+    """The dictionary written to summary.json (keys documented in the README)."""
+    comm = problem.comm
+    mpicomm = comm.tompi4py()
+    return {
+        "scene": problem.scene.get("name", "scene"),
+        "nd": problem.nd,
+        "ranks": comm.getSize(),
+        "petsc_version": "%d.%d.%d" % PETSc.Sys.getVersion(),
+        "petsc4py_version": petsc4py.__version__,
+        "mode": problem.mode,
+        "partitioner": problem.partitioner,
+        "dofs": problem.n_dofs,
+        "contact_nodes": problem.cs.n_paper if problem.cs is not None else 0,
+        "contact_nodes_active": problem.cs.size if problem.cs is not None else 0,
+        "friction": problem.scene.get("contact", {}).get("friction", 0.0),
+        "uzawa_r": problem.scene["solver"]["uzawa_r"],
+        "tolerances": {k: problem.scene["solver"][k] if problem.apg is None else v
+                       for k, v in (("apg_rtol", problem.apg and problem.apg.rtol),
+                                    ("uzawa_rtol", problem.uzawa and problem.uzawa.rtol),
+                                    ("fp_rtol", problem.fp.rtol if problem.fp else
+                                     problem.scene["solver"]["fp_rtol"]))},
+        "lipschitz": problem.apg.lipschitz() if problem.apg is not None else None,
+        "iterations": problem.iterations(),
+        "time_s": {"setup": problem.time_setup, "solve": problem.time_solve,
+                   "total": time_total},
+        "energy": res.energy(problem),
+        "max_displacement": res.max_displacement(mpicomm, problem.x),
+        "residuals": res.residuals(problem),
+        "converged": bool(problem.converged),
+    }
+
+
+HEADER = (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {'APG(1st)':>9} {'Uzawa(mean)':>11} "
+          f"{'FP':>4} {'time, s':>9}")
+
+
+def table_line(s):
+    it = s["iterations"]
+    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {it['apg_first']:>9} "
+            f"{it['uzawa_mean']:>11.1f} {it['fixed_point']:>4} {s['time_s']['total']:>9.2f}")
+
+
+def print_summary(comm, s, outdir=None):
+    r = s["residuals"]
+    lines = [HEADER, table_line(s),
+             f"mode {s['mode']}, ranks {s['ranks']}, APG total {s['iterations']['apg_total']}, "
+             f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
+             f"residuals: penetration {r['penetration']:.2e}, complementarity "
+             f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
+             f"{s['converged']}"]
+    if outdir:
+        lines.append(f"results in {outdir}")
+    PETSc.Sys.Print("\n".join(lines), comm=comm)

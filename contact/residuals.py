@@ -1,0 +1,104 @@
+"""Energy and a-posteriori residuals of a computed contact solution.
+
+All residuals use the discrete contact reaction R = A u - b (the nodal force of the
+foundation on the body: equilibrium is A u = b + R), so they check the solution
+independently of the multipliers the loops carried. At contact node j, weight w_j:
+  sigma_nu,j  = R_j . nu / w_j = -R_j3 / w_j       (nu = (0,0,-1))
+  g_j         = -sigma_nu,j = R_j3 / w_j          (contact pressure)
+  sigma_tau,j = (R_j1, R_j2) / w_j                 (friction traction)
+  u_nu,j      = -u_j3,  u_tau,j = (u_j1, u_j2)
+Relative residuals (0 for an exact discrete solution):
+  penetration     max_j (u_nu,j)^+ / max_nodes |u|
+  complementarity max_j |g_j u_nu,j| / (max_j |g_j| * max_nodes |u|)
+  coulomb         max of  max_j (|sigma_tau,j| - F_j g_j^+)^+ / max_j |g_j|   (friction cone)
+                  and     max_{j slipping} |sigma_tau,j + F_j g_j u_tau,j/|u_tau,j|| / max_j |g_j|
+                  (slip: friction opposes the slip and is at the bound); a node slips when
+                  |u_tau,j| > 1e-6 max_nodes |u|.
+  tension         max_j (-g_j)^+ / max_j |g_j|   (the foundation cannot pull), folded
+                  into complementarity.
+The energy is J(u) = 1/2 a(u,u) - b(u) + sum_j F_j g_j w_j |u_tau,j| with the g of the
+final solve.
+"""
+import numpy as np
+from mpi4py import MPI
+
+
+def _max(comm, a, default=0.0):
+    v = float(np.max(a)) if np.size(a) else default
+    return comm.allreduce(v, op=MPI.MAX)
+
+
+def max_displacement(comm, x):
+    u = x.getArray(readonly=True).reshape(-1, 3)
+    return _max(comm, np.linalg.norm(u, axis=1))
+
+
+def energy(problem, x=None):
+    """J(u) = 1/2 <A u, u> - <b, u> + sum_j F_j g_j w_j |u_tau,j|."""
+    x = x if x is not None else problem.x
+    Ax = x.duplicate()
+    problem.A.mult(x, Ax)
+    J = 0.5 * Ax.dot(x) - problem.b.dot(x)
+    Ax.destroy()
+    cs = problem.cs
+    if cs is not None and cs.size and problem.g is not None:
+        t1, t2, nrm = cs.vec(), cs.vec(), cs.vec()
+        cs.tangential_norm(x, t1, t2, nrm)
+        nrm.pointwiseMult(nrm, cs.F)
+        nrm.pointwiseMult(nrm, cs.w)
+        J += nrm.dot(problem.g)
+        for v in (t1, t2, nrm):
+            v.destroy()
+    return J
+
+
+def contact_fields(problem, x=None):
+    """Owned contact-node arrays: dict of u (m,3), R (m,3), w, F, l (multiplier), g."""
+    x = x if x is not None else problem.x
+    cs = problem.cs
+    R = x.duplicate()
+    problem.A.mult(x, R)
+    R.axpy(-1.0, problem.b)                      # R = A u - b
+    out = {"w": cs.local_array(cs.w), "F": cs.local_array(cs.F)}
+    tmp = cs.vec()
+    u, r = np.zeros((cs.local_size, 3)), np.zeros((cs.local_size, 3))
+    for c in range(3):
+        cs.gather(x, tmp, c)
+        u[:, c] = cs.local_array(tmp)
+        cs.gather(R, tmp, c)
+        r[:, c] = cs.local_array(tmp)
+    tmp.destroy()
+    R.destroy()
+    out.update(u=u, R=r)
+    out["l"] = cs.local_array(problem.l) if problem.l is not None else np.zeros(cs.local_size)
+    return out
+
+
+def residuals(problem, x=None, slip_tol=1e-6):
+    """The relative residuals documented above (dict)."""
+    comm = problem.comm.tompi4py()
+    x = x if x is not None else problem.x
+    umax = max_displacement(comm, x)
+    if problem.cs is None or problem.cs.size == 0:
+        return {"penetration": 0.0, "complementarity": 0.0, "coulomb": 0.0}
+    f = contact_fields(problem, x)
+    w, F, u, R = f["w"], f["F"], f["u"], f["R"]
+    g = R[:, 2] / w
+    sig_t = R[:, :2] / w[:, None]
+    un = -u[:, 2]
+    ut = np.linalg.norm(u[:, :2], axis=1)
+    gmax = _max(comm, np.abs(g))
+    gden = gmax if gmax > 0 else 1.0
+    uden = umax if umax > 0 else 1.0
+    pen = _max(comm, np.maximum(un, 0.0)) / uden
+    comp = _max(comm, np.abs(g * un)) / (gden * uden)
+    tension = _max(comm, np.maximum(-g, 0.0)) / gden
+    bound = F * np.maximum(g, 0.0)
+    cone = _max(comm, np.maximum(np.linalg.norm(sig_t, axis=1) - bound, 0.0)) / gden
+    slip = ut > slip_tol * uden
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mism = np.linalg.norm(sig_t[slip] + bound[slip, None] * u[slip, :2] / ut[slip, None],
+                              axis=1)
+    mismatch = _max(comm, mism) / gden
+    return {"penetration": pen, "complementarity": max(comp, tension),
+            "coulomb": max(cone, mismatch)}

@@ -1,0 +1,175 @@
+"""Scenes: YAML files giving the defaults of a run; the options database overrides them.
+
+Named options: -scene FILE, -nd N, -friction F, -young E, -poisson NU, -uzawa_r R,
+-output_dir DIR, and the loop tolerances -apg_rtol, -uzawa_rtol, -fp_rtol.
+Any other scalar of the scene: -scene_<path with underscores>, e.g.
+-scene_boundary_top_traction_2 -40  or  -scene_mesh_upper_0 4.0.
+"""
+import copy
+import math
+import os
+import re
+
+import yaml
+from petsc4py import PETSc
+
+#: named options -> path in the scene
+NAMED = {
+    "nd": ("mesh", "nd"),
+    "friction": ("contact", "friction"),
+    "young": ("material", "young"),
+    "poisson": ("material", "poisson"),
+    "uzawa_r": ("solver", "uzawa_r"),
+    "apg_rtol": ("solver", "apg_rtol"),
+    "uzawa_rtol": ("solver", "uzawa_rtol"),
+    "fp_rtol": ("solver", "fp_rtol"),
+}
+
+DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                             "runs", "paper_beam.yaml")
+
+PART_TYPES = ("dirichlet", "contact", "traction")
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class SceneError(ValueError):
+    """Bad scene file or option value."""
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1 reads 1e8 or 21.19e4 as strings; read them as floats like YAML 1.2 does."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?(?:[eE][-+]?[0-9]+)$""", re.X),
+    list("-+0123456789"))
+
+
+def load(path):
+    try:
+        with open(path) as f:
+            data = yaml.load(f, Loader=_Loader)
+    except OSError as e:
+        raise SceneError(f"cannot read scene file {path}: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise SceneError(f"scene file {path} is not valid YAML: {e}") from None
+    if not isinstance(data, dict):
+        raise SceneError(f"scene file {path} must hold a mapping")
+    data.setdefault("name", os.path.splitext(os.path.basename(path))[0])
+    return data
+
+
+def _get(d, path):
+    for k in path:
+        d = d[k] if isinstance(d, dict) else d[int(k)]
+    return d
+
+
+def _set(d, path, value):
+    for k in path[:-1]:
+        d = d.setdefault(k, {}) if isinstance(d, dict) else d[int(k)]
+    if isinstance(d, list):
+        d[int(path[-1])] = value
+    else:
+        d[path[-1]] = value
+
+
+def _scalars(d, prefix=()):
+    """(path, value) of every scalar leaf of nested dicts/lists."""
+    items = d.items() if isinstance(d, dict) else enumerate(d)
+    for k, v in items:
+        p = prefix + (str(k),)
+        if isinstance(v, (dict, list)):
+            yield from _scalars(v, p)
+        else:
+            yield p, v
+
+
+def _convert(old, text, name):
+    try:
+        if isinstance(old, bool):
+            return text.lower() in ("1", "true", "yes", "on")
+        if isinstance(old, int):
+            return int(text)
+        if isinstance(old, float):
+            return float(text)
+        try:
+            return float(text)
+        except ValueError:
+            return text
+    except ValueError:
+        raise SceneError(f"option -{name}: cannot read {text!r} as {type(old).__name__}") from None
+
+
+def from_options(opts=None):
+    """The scene of this run: -scene FILE (default the paper's beam), then overrides."""
+    opts = opts or PETSc.Options()
+    scene = load(opts.getString("scene", DEFAULT_SCENE))
+    scene = copy.deepcopy(scene)
+    for opt, path in NAMED.items():
+        if opts.hasName(opt):
+            try:
+                old = _get(scene, path)
+            except (KeyError, IndexError, TypeError):
+                old = 0.0
+            _set(scene, path, _convert(old, opts.getString(opt), opt))
+    for path, old in list(_scalars(scene)):
+        name = "scene_" + "_".join(path)
+        if opts.hasName(name):
+            _set(scene, path, _convert(old, opts.getString(name), name))
+    validate(scene)
+    return scene
+
+
+def _positive(value, what):
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise SceneError(f"{what} must be a positive finite number, got {value!r}")
+
+
+def validate(scene):
+    """Check the values a run needs; raise SceneError naming the first bad one."""
+    for key in ("mesh", "material", "boundary"):
+        if key not in scene:
+            raise SceneError(f"scene has no '{key}' section")
+    mesh = scene["mesh"]
+    if mesh.get("type", "box") != "box":
+        raise SceneError(f"mesh type {mesh.get('type')!r} is not supported (only 'box')")
+    nd = mesh.get("nd", 1)
+    if not isinstance(nd, int) or nd < 1:
+        raise SceneError(f"nd must be an integer >= 1, got {nd!r}")
+    mat = scene["material"]
+    _positive(mat.get("young"), "Young's modulus (material.young)")
+    nu = mat.get("poisson")
+    if not isinstance(nu, (int, float)) or not (-1.0 < nu < 0.5):
+        raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got {nu!r}")
+    sol = scene.setdefault("solver", {})
+    _positive(sol.setdefault("uzawa_r", 1e8), "uzawa_r")
+    for k, v in (("apg_rtol", 1e-8), ("uzawa_rtol", 1e-6), ("fp_rtol", 1e-6)):
+        _positive(sol.setdefault(k, v), k)
+    fr = scene.setdefault("contact", {}).setdefault("friction", 0.0)
+    if isinstance(fr, (int, float)) and (not math.isfinite(fr) or fr < 0):
+        raise SceneError(f"friction must be >= 0, got {fr!r}")
+    parts = scene["boundary"]
+    if not isinstance(parts, dict) or not parts:
+        raise SceneError("scene has no boundary parts")
+    for name, part in parts.items():
+        t = part.get("type")
+        if t not in PART_TYPES:
+            raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got {t!r}")
+        plane = part.get("plane")
+        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES):
+            raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, value]")
+        if t == "traction":
+            p = part.get("traction")
+            if not (isinstance(p, list) and len(p) == 3 and
+                    all(isinstance(c, (int, float)) and math.isfinite(c) for c in p)):
+                raise SceneError(f"boundary part {name!r}: traction must be 3 finite numbers")
+        if t == "dirichlet":
+            comps = part.setdefault("components", ["x", "y", "z"])
+            if not all(c in AXES for c in comps):
+                raise SceneError(f"boundary part {name!r}: components must be among x, y, z")
+    if not any(p["type"] == "dirichlet" for p in parts.values()):
+        raise SceneError("scene has no dirichlet (clamped) part: rigid-body motion is not "
+                         "excluded")
+    return scene
