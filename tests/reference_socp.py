@@ -73,7 +73,7 @@ def _kkt_residual(K, f, free, nrm, tan, ws, u, R):
     other = free.copy()
     other[nrm] = other[tan.ravel()] = False
     e.append(np.abs(r[other]))
-    scale = max(np.abs(f).max(), np.abs(R).max(), 1e-300)
+    scale = max(np.abs(f).max(initial=0), np.abs(R).max(initial=0), 1e-300)
     return max(x.max(initial=0.0) for x in e) / scale
 
 
@@ -110,7 +110,10 @@ def _polish(K, f, free, nrm, tan, ws, u, R):
                                           nn[:, [0, 0, 1, 1]] * nn[:, [0, 1, 0, 1]])
             H = (K + sp.csr_matrix((blk.ravel(), (ii.ravel(), jj.ravel())),
                                    shape=K.shape))[keep][:, keep]
-            du = spla.spsolve(H.tocsc(), -g[keep])
+            try:
+                du = spla.spsolve(H.tocsc(), -g[keep])
+            except RuntimeError:     # singular reduced Hessian
+                return None
             if not np.all(np.isfinite(du)):
                 return None
             u[keep] += du
@@ -149,6 +152,10 @@ def solve_tresca(K, f, dirichlet, nrm_dofs, tan_dofs, w, s, tol=1e-10):
     free_mask[np.asarray(dirichlet, dtype=int).ravel()] = False
     free = np.flatnonzero(free_mask)
     nf = free.size
+    if not np.any(f[free]):          # J >= 0 = J(0): u = 0, R = 0 is exact
+        z = np.zeros(m)
+        return dict(u=np.zeros(n), force=z, pressure=z, status="Solved",
+                    kkt=0.0, polished=False)
     gmap = np.full(n, -1)
     gmap[free] = np.arange(nf)
 
@@ -208,9 +215,9 @@ def solve_tresca(K, f, dirichlet, nrm_dofs, tan_dofs, w, s, tol=1e-10):
     # friction data seen by polish/KKT: only free tangential components count
     ws = np.zeros(m)
     ws[fn] = w[fn] * s[fn]
-    kkt = _kkt_residual(K, f, free_mask, nrm, tan, ws, u, force) if nf else 0.0
+    kkt = _kkt_residual(K, f, free_mask, nrm, tan, ws, u, force)
     polished = False
-    pol = _polish(K, f, free_mask, nrm, tan, ws, u, force) if nf else None
+    pol = _polish(K, f, free_mask, nrm, tan, ws, u, force)
     if pol is not None:
         kkt_p = _kkt_residual(K, f, free_mask, nrm, tan, ws, *pol)
         if kkt_p <= kkt:

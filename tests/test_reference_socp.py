@@ -10,6 +10,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import reference_socp  # noqa: E402
 from reference_socp import solve_coulomb, solve_tresca  # noqa: E402
 
 NN, M = 10, 4                          # nodes, contact nodes 0..3
@@ -94,6 +95,21 @@ def test_tresca_kkt_active_contact_and_friction():
     assert slip.any() and (~slip).any()
     # sign convention: R is the force K u - f on the normal dofs, >= 0
     assert np.allclose(R, (K @ u - f)[NRM], atol=1e-7 * np.abs(f).max())
+    assert res["polished"] and res["kkt"] < 1e-12
+
+
+def test_interior_point_only_sign_convention(monkeypatch):
+    """Without the Newton polish: Clarabel's dual z of the u_z >= 0 rows,
+    rescaled, must already be the contact force R = (K u - f)_z >= 0."""
+    monkeypatch.setattr(reference_socp, "_polish", lambda *a: None)
+    K, f = _problem(0)
+    s = np.array([30.0, 5.0, 1e3, 10.0])
+    res = solve_tresca(K, f, DIR, NRM, TAN, W, s)
+    u, R = res["u"], res["force"]
+    assert not res["polished"] and res["kkt"] < 1e-5
+    assert R.max() > 1.0 and R.min() >= -1e-8 * R.max()
+    assert np.abs(R - (K @ u - f)[NRM]).max() <= 1e-8 * np.abs(f).max()
+    _check_kkt(K, f, u, R, s, rtol=1e-5)
 
 
 def test_coulomb_fixed_point():

@@ -1,0 +1,66 @@
+# Set-up and entry points. `make run` and `make test` install what is missing first.
+# Debian's interpreter and packages (PETSc 3.18, petsc4py, mpi4py, h5py, Open MPI); a venv
+# that sees them; pymetis (METIS where PETSc lacks ParMETIS) and clarabel (tests) from PyPI.
+
+SYSPY    ?= /usr/bin/python3
+VENV     ?= .venv
+PY       := $(VENV)/bin/python
+STAMP    := $(VENV)/.installed
+NP       ?= 2
+ARGS     ?= -nd 10 -fp_monitor
+DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
+            python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
+PIP_PKGS := pymetis clarabel
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+export OMPI_MCA_rmaps_base_oversubscribe := 1
+MPIRUN   := mpirun -n $(NP) --oversubscribe
+
+.PHONY: install run run2 test test1 test2 clean help
+
+help:
+	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
+	@echo "make test                       install if needed, run the suite on 1 and 2 ranks"
+	@echo "make install                    Debian packages + .venv (idempotent)"
+
+install: $(STAMP)
+
+$(STAMP): setup.py Makefile
+	@missing=""; for p in $(DEB_PKGS); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends $$missing; \
+	fi
+	@test -x $(PY) || $(SYSPY) -m venv --system-site-packages $(VENV)
+	@# Debian's petsc4py lives under PETSc's own tree; its .pth needs the petsc-dev
+	@# alternative, which we do not need, so point the venv at it directly.
+	@site=$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
+	if ! $(PY) -c 'import petsc4py' 2>/dev/null; then \
+	  d=$$(ls -d /usr/lib/petscdir/petsc3.*/x86_64-linux-gnu-real/lib/python3/dist-packages 2>/dev/null | sort -V | tail -1); \
+	  test -n "$$d" || { echo "petsc4py not found"; exit 1; }; \
+	  echo "$$d" > $$site/debian_petsc4py.pth; \
+	fi
+	@$(PY) -c 'import pymetis, clarabel' 2>/dev/null || $(PY) -m pip install -q $(PIP_PKGS)
+	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	@$(PY) -c 'import petsc4py, mpi4py, h5py, numpy; print("ok: petsc4py", petsc4py.__version__, "numpy", numpy.__version__)'
+	@touch $(STAMP)
+
+run: install
+	$(PY) -m contact $(ARGS)
+
+run2: install
+	$(MPIRUN) $(PY) -m contact $(ARGS)
+
+test: install test1 test2
+
+test1: install
+	$(PY) -m pytest -q tests
+
+test2: install
+	$(MPIRUN) $(PY) -m mpi4py -m pytest -q -p no:cacheprovider tests
+
+clean:
+	rm -rf runs/out .pytest_cache

@@ -1,0 +1,86 @@
+"""Test set-up: the test run is an entry point, so it initialises PETSc here.
+
+Scenes are built as dicts (no global options), solved on COMM_WORLD or COMM_SELF.
+Run on 1 rank (pytest) and on 2 (mpirun -n 2 python -m mpi4py -m pytest).
+"""
+import copy
+import os
+import sys
+
+import petsc4py
+
+petsc4py.init(sys.argv[:1])
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from mpi4py import MPI  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from contact import scene as scenes  # noqa: E402
+from contact.problem import ContactProblem  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PAPER = os.path.join(ROOT, "runs", "paper_beam.yaml")
+
+
+def paper_scene(nd=2, **solver):
+    sc = scenes.load(PAPER)
+    sc["mesh"]["nd"] = nd
+    sc["solver"].update(solver)
+    return scenes.validate(sc)
+
+
+def block_scene(parts, nd=2, young=1.0e3, poisson=0.3, friction=0.0, size=(1.0, 1.0, 1.0),
+                **solver):
+    """Box [0,size] meshed nd^3 (per unit cells_per_nd 1) with the given boundary parts."""
+    sc = {"name": "block", "mesh": {"type": "box", "lower": [0, 0, 0], "upper": list(size),
+                                    "cells_per_nd": [1, 1, 1], "nd": nd},
+          "material": {"young": young, "poisson": poisson},
+          "boundary": copy.deepcopy(parts), "contact": {"friction": friction},
+          "solver": dict(solver)}
+    return scenes.validate(sc)
+
+
+def solve(sc, comm=None):
+    return ContactProblem(sc, comm or PETSc.COMM_WORLD).solve()
+
+
+def gather(problem):
+    """Canonical (coordinates, displacement) on every rank."""
+    from contact import output
+    res = output.gather_nodes(problem)
+    return problem.comm.tompi4py().bcast(res, root=0)
+
+
+@pytest.fixture
+def comm():
+    return PETSc.COMM_WORLD
+
+
+@pytest.fixture
+def mpi_tmp_path(tmp_path_factory):
+    """One temporary directory shared by all ranks."""
+    c = MPI.COMM_WORLD
+    path = str(tmp_path_factory.mktemp("run")) if c.rank == 0 else None
+    return c.bcast(path, root=0)
+
+
+@pytest.fixture(autouse=True)
+def clean_options():
+    """Options a test inserts are removed afterwards (and none may be left behind)."""
+    before = dict(PETSc.Options().getAll())
+    yield
+    opts = PETSc.Options()
+    for k in list(opts.getAll()):
+        if k not in before:
+            opts.delValue(k)
+
+
+skip_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial-only test")
+only_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size == 1,
+                                      reason="compares a parallel run with a serial one")
+
+
+def rel_err(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return np.abs(a - b).max() / max(np.abs(b).max(), 1e-300)

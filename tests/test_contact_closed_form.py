@@ -1,0 +1,73 @@
+"""Contact solutions with closed forms or an exact linear-elasticity counterpart."""
+import copy
+
+import numpy as np
+from conftest import block_scene, gather, paper_scene, rel_err, solve
+
+from contact import residuals as res
+
+PRESSED = {
+    "sym_x": {"plane": ["x", 0.0], "type": "dirichlet", "components": ["x"]},
+    "sym_y": {"plane": ["y", 0.0], "type": "dirichlet", "components": ["y"]},
+    "contact": {"plane": ["z", 0.0], "type": "contact"},
+    "top": {"plane": ["z", 1.0], "type": "traction", "traction": [0.0, 0.0, -2.0]},
+}
+
+
+def test_block_pressed_on_frictionless_foundation(comm):
+    """Uniform pressure p on top: sigma_zz = -p, u = p/E (nu x, nu y, -z), contact g = p."""
+    E, nu, p = 1.0e3, 0.3, 2.0
+    pr = solve(block_scene(PRESSED, nd=2, young=E, poisson=nu, uzawa_r=1e4,
+                           apg_rtol=1e-11, uzawa_rtol=1e-10), comm)
+    assert pr.mode == "frictionless" and pr.fp is None     # F = 0: no fixed point
+    xyz, u = gather(pr)[:2]
+    exact = p / E * np.c_[nu * xyz[:, 0], nu * xyz[:, 1], -xyz[:, 2]]
+    assert rel_err(u, exact) < 1e-6
+    g = pr.cs.local_array(pr.l)
+    assert np.all(np.abs(g - p) < 1e-6 * p)
+    assert pr.converged
+
+
+def test_lift_off_equals_linear_elasticity(comm):
+    """Loads that lift the beam off the foundation: same u as one KSP solve without contact."""
+    # APG's step criterion is loose: rtol 1e-12 leaves ~4e-7 error here, 1e-14 ~1e-9
+    sc = paper_scene(nd=2, uzawa_r=1e5, apg_rtol=1e-14)
+    sc["boundary"]["top"]["traction"] = [0.0, 0.0, 5.0]
+    sc["boundary"]["end"]["traction"] = [1.0, 0.0, 5.0]
+    pr = solve(sc, comm)
+    lin = copy.deepcopy(sc)
+    del lin["boundary"]["contact"]
+    ref = solve(lin, comm)
+    assert ref.mode == "linear" and pr.mode == "coulomb"
+    u, u_ref = gather(pr)[1], gather(ref)[1]
+    assert rel_err(u, u_ref) < 1e-7
+    assert pr.cs.local_array(pr.l).max(initial=0.0) == 0.0    # no contact force anywhere
+    assert pr.fp.iterations == 1 and pr.uzawa.total_iterations == 1
+
+
+def test_residuals_small_at_convergence_and_large_when_perturbed(comm):
+    pr = solve(paper_scene(nd=2, uzawa_r=1e6), comm)
+    r = res.residuals(pr)
+    assert max(r.values()) < 1e-4, r
+    # push the contact nodes 1% of max |u| into the foundation: penetration is seen
+    bad = pr.x.copy()
+    umax = res.max_displacement(comm.tompi4py(), bad)
+    dz = pr.cs.vec(-0.01 * umax)
+    pr.cs.scatter(dz, bad, 2, mode=__import__("petsc4py").PETSc.InsertMode.ADD_VALUES)
+    assert res.residuals(pr, bad)["penetration"] > 5e-3
+    # remove all slip: friction force no longer matches, the Coulomb residual sees it
+    stuck = pr.x.copy()
+    zero = pr.cs.vec(0.0)
+    pr.cs.scatter(zero, stuck, 0)
+    pr.cs.scatter(zero, stuck, 1)
+    assert res.residuals(pr, stuck)["coulomb"] > 1e-2
+
+
+def test_paper_scene_fixed_point_count_like_the_paper(comm):
+    """The paper's scene and parameters (r = 1e8, its tolerances) at Nd = 2: the paper
+    reports 8 fixed-point iterations for every mesh."""
+    pr = solve(paper_scene(nd=2), comm)
+    assert pr.mode == "coulomb" and pr.converged
+    assert 6 <= pr.fp.iterations <= 10
+    r = res.residuals(pr)
+    assert max(r.values()) < 1e-4, r
