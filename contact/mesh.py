@@ -64,7 +64,10 @@ def _metis_shell_partitioner(dm):
     if comm.getRank() == 0:
         conn = cell_vertices(dm)[0]
         xadj, adjncy = _cell_dual_graph(conn)
-        _, membership = pymetis.part_graph(size, xadj=xadj, adjncy=adjncy)
+        if hasattr(pymetis, "CSRAdjacency"):                 # pymetis >= 2025
+            _, membership = pymetis.part_graph(size, pymetis.CSRAdjacency(xadj, adjncy))
+        else:
+            _, membership = pymetis.part_graph(size, xadj=xadj, adjncy=adjncy)
         membership = np.asarray(membership)
         points = np.argsort(membership, kind="stable").astype(PETSc.IntType)
         sizes = np.bincount(membership, minlength=size).astype(PETSc.IntType)
