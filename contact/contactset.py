@@ -71,6 +71,7 @@ class ContactSet:
         self.F = self.vec(F)
         self.has_friction = self.F.norm(PETSc.NormType.INFINITY) > 0.0
         self.zero = self.vec(0.0)
+        self._work = self.vec()
         self._scatters = []
         for c in range(3):
             is_ = PETSc.IS().createGeneral(self.dofs[c], comm=comm)
@@ -114,10 +115,8 @@ class ContactSet:
         self.gather(x, t1, 0)
         self.gather(x, t2, 1)
         out.pointwiseMult(t1, t1)
-        t2sq = t2.duplicate()
-        t2sq.pointwiseMult(t2, t2)
-        out.axpy(1.0, t2sq)
-        t2sq.destroy()
+        self._work.pointwiseMult(t2, t2)
+        out.axpy(1.0, self._work)
         out.sqrtabs()
         return out
 
