@@ -166,3 +166,14 @@ def displacement_section(dm):
     setter = getattr(dm, "setLocalSection", None) or dm.setSection
     setter(sec)
     return sec
+
+
+def label_parts(dm, parts):
+    """One DMLabel per boundary part (value 1 on its vertices), named after the part."""
+    vs = dm.getDepthStratum(0)[0]
+    for name, faces in parts.items():
+        dm.createLabel(name)
+        pts = (np.unique(faces.ravel()) + vs).astype(PETSc.IntType)
+        is_ = PETSc.IS().createGeneral(pts, comm=PETSc.COMM_SELF)
+        dm.getLabel(name).setStratumIS(1, is_)
+        is_.destroy()

@@ -54,6 +54,7 @@ class ContactProblem:
             axis, value = part["plane"]
             parts[name] = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
         self.parts = parts
+        mesh.label_parts(dm, parts)
         mat = sc["material"]
         self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"])
         tractions = [(parts[n], p["traction"]) for n, p in sc["boundary"].items()
