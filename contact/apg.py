@@ -10,6 +10,9 @@ Iteration (the paper's, Beck-Teboulle momentum):
     y   = x^(i-1) + (i-2)/(i+1) (x^(i-1) - x^(i-2))
     x^i = prox_{alpha H}(y - alpha grad G(y)),  alpha = 1/L,
     prox of alpha*lambda_j ||.|| on R^2:  v -> (1 - alpha lambda_j / ||v||)^+ v.
+-apg_restart gradient: adaptive restart of the momentum (O'Donoghue & Candes 2015,
+gradient scheme): when <y - x^i, x^i - x^(i-1)> > 0 the momentum counter restarts, so the
+next step is a plain proximal-gradient step. Default none (the paper's iteration).
 L = L_A + r max_j w_j, where L_A >= lambda_max(A) is min(margin * power-iteration
 estimate, Gershgorin bound ||A||_inf). Stop when ||x^i - x^(i-1)|| / ||x^i|| < rtol.
 All work is PETSc Vec/Mat operations on whole vectors plus VecScatters to contact space.
@@ -38,6 +41,8 @@ class APG(Loop):
         self.A, self.b, self.cs, self.r = A, b, cset, float(r)
         self.lipschitz_its = 100
         self.lipschitz_margin = 1.1
+        self.restart = "none"
+        self.restarts = 0
         self.L_A = None
         self.first_iterations = None     # of the very first call (Table 1's column)
         v = A.createVecRight()
@@ -54,6 +59,9 @@ class APG(Loop):
         self.lipschitz_margin = o.getReal("lipschitz_margin", self.lipschitz_margin)
         if self.lipschitz_margin < 1.0:
             raise ValueError("-apg_lipschitz_margin must be >= 1")
+        self.restart = o.getString("restart", self.restart)
+        if self.restart not in ("none", "gradient"):
+            raise ValueError(f"-apg_restart must be none or gradient, got {self.restart!r}")
 
     def estimate_lipschitz(self):
         """L_A >= lambda_max(A): min(margin * power iteration, ||A||_inf)."""
@@ -123,16 +131,23 @@ class APG(Loop):
         x_prev.set(0.0)
         d.set(0.0)                                         # x^(0) = x^(-1)
         _EV_ITER.begin()
-        it, reason = 0, None
+        it, k, reason = 0, 0, None           # k: momentum counter (= it without restarts)
+        restart = self.restart == "gradient"
         while reason is None:
             it += 1
-            beta = (it - 2.0) / (it + 1.0)
+            k += 1
+            beta = (k - 2.0) / (k + 1.0)
             y.waxpy(beta, d, x)                            # y = x + beta (x - x_prev)
             self.gradient(y, l, grad)
             xnew.waxpy(-alpha, grad, y)
             if use_prox:
                 self.prox(xnew, self.thr)
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)
+            if restart:
+                grad.waxpy(-1.0, xnew, y)                  # y - x^i (grad is free now)
+                if grad.dot(d) > 0.0:
+                    k = 1                                  # next step: beta = 0
+                    self.restarts += 1
             x.swap(xnew)                                   # x <- x^i
             change, norm = d.norm(), x.norm()
             reason = self.test(it, change, norm)

@@ -40,3 +40,14 @@ def test_no_clamped_part_is_rejected():
     del sc["boundary"]["clamped"]
     with pytest.raises(scenes.SceneError, match="no dirichlet"):
         scenes.validate(sc)
+
+
+def test_adaptive_restart_reaches_the_same_solution_in_fewer_iterations(comm):
+    from conftest import gather, rel_err
+    sc = paper_scene(nd=2, uzawa_r=1e6, apg_rtol=1e-13, uzawa_rtol=1e-10, fp_rtol=1e-10)
+    ref = solve(sc, comm)
+    PETSc.Options().setValue("apg_restart", "gradient")
+    fast = solve(sc, comm)
+    assert fast.apg.restarts > 0
+    assert rel_err(gather(fast)[1], gather(ref)[1]) < 1e-6
+    assert fast.apg.total_iterations < ref.apg.total_iterations
