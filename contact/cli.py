@@ -73,5 +73,6 @@ def main(argv=None):
         if debug:
             raise
         _error(comm, str(e))
+        comm.tompi4py().Barrier()     # leave together: mpirun kills the rest at the first exit
         return 1
     return 0
