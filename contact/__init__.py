@@ -1,5 +1,5 @@
 """Parallel duality solver for 3D frictional contact (Namm & Tsoy 2023) on PETSc.
 
-The package never calls petsc4py.init(); the entry point (python -m contact) does.
+The package never initialises PETSc itself; the entry point (python -m contact) does.
 """
 __version__ = "0.1.0"

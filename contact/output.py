@@ -121,6 +121,11 @@ def write_xdmf(path, h5name, n, nc, m):
   </Domain>
 </Xdmf>
 """
+    _write_text(path, text)
+
+
+def _write_text(path, text):
+    """Write to a temporary name, then rename: never a half-written file."""
     tmp = _atomic(path)
     with open(tmp, "w") as f:
         f.write(text)
@@ -128,11 +133,7 @@ def write_xdmf(path, h5name, n, nc, m):
 
 
 def write_json(path, data):
-    tmp = _atomic(path)
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=2)
-        f.write("\n")
-    os.replace(tmp, path)
+    _write_text(path, json.dumps(data, indent=2) + "\n")
 
 
 def prepare_dir(comm, outdir):
