@@ -46,7 +46,7 @@ class APG(Loop):
         self.L_A = None
         self.first_iterations = None     # of the very first call (Table 1's column)
         v = A.createVecRight()
-        self.x_prev, self.y, self.grad, self.xnew, self.d = (v.duplicate() for _ in range(5))
+        self.y, self.grad, self.xnew, self.d = (v.duplicate() for _ in range(4))
         v.destroy()
         c = cset
         self.cz, self.s, self.t1, self.t2, self.nrm, self.fac, self.thr = \
@@ -127,8 +127,7 @@ class APG(Loop):
         if use_prox:
             self.thr.set(0.0)
             self.thr.axpy(alpha, lam)
-        x_prev, xnew, d, y, grad = self.x_prev, self.xnew, self.d, self.y, self.grad
-        x_prev.set(0.0)
+        xnew, d, y, grad = self.xnew, self.d, self.y, self.grad
         d.set(0.0)                                         # x^(0) = x^(-1)
         _EV_ITER.begin()
         it, k, reason = 0, 0, None           # k: momentum counter (= it without restarts)

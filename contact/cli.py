@@ -31,10 +31,6 @@ Other: -dm_vec_type, -dm_mat_type (e.g. cuda / aijcusparse), -log_view, -debug
 """
 
 
-class UsageError(ValueError):
-    pass
-
-
 def _error(comm, msg):
     if comm.getRank() == 0:
         print(f"contact: error: {msg}", file=sys.stderr, flush=True)

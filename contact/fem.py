@@ -103,7 +103,8 @@ def assemble_stiffness(dm, conn, coords, young, poisson):
     """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained."""
     lam, mu = lame(young, poisson)
     A = dm.createMatrix()
-    A.setBlockSize(3) if A.getBlockSize() != 3 else None
+    if A.getBlockSize() != 3:
+        A.setBlockSize(3)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     idx_type = PETSc.IntType
     for s in range(0, conn.shape[0], CHUNK):

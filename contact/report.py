@@ -5,6 +5,13 @@ from petsc4py import PETSc
 from . import residuals as res
 
 
+def _tolerances(problem):
+    """The tolerances the loops used (options included), else the scene's."""
+    sol = problem.scene["solver"]
+    loops = {"apg_rtol": problem.apg, "uzawa_rtol": problem.uzawa, "fp_rtol": problem.fp}
+    return {k: (lp.rtol if lp is not None else sol[k]) for k, lp in loops.items()}
+
+
 def summary(problem, time_total):
     """The dictionary written to summary.json (keys documented in the README)."""
     comm = problem.comm
@@ -22,11 +29,7 @@ def summary(problem, time_total):
         "contact_nodes_active": problem.cs.size if problem.cs is not None else 0,
         "friction": problem.scene.get("contact", {}).get("friction", 0.0),
         "uzawa_r": problem.scene["solver"]["uzawa_r"],
-        "tolerances": {k: problem.scene["solver"][k] if problem.apg is None else v
-                       for k, v in (("apg_rtol", problem.apg and problem.apg.rtol),
-                                    ("uzawa_rtol", problem.uzawa and problem.uzawa.rtol),
-                                    ("fp_rtol", problem.fp.rtol if problem.fp else
-                                     problem.scene["solver"]["fp_rtol"]))},
+        "tolerances": _tolerances(problem),
         "lipschitz": problem.apg.lipschitz() if problem.apg is not None else None,
         "iterations": problem.iterations(),
         "time_s": {"setup": problem.time_setup, "solve": problem.time_solve,
