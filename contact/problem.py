@@ -71,8 +71,7 @@ class ContactProblem:
         cfaces = [parts[n] for n, p in sc["boundary"].items() if p["type"] == "contact"]
         self.has_contact_part = bool(cfaces)
         if self.has_contact_part:
-            faces = np.concatenate(cfaces) if cfaces else np.zeros((0, 4), dtype=np.intp)
-            self.cs = ContactSet(dm, coords, faces, self.clamped,
+            self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                                  sc.get("contact", {}).get("friction", 0.0), self.b)
         else:
             self.cs = None

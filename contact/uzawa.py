@@ -26,7 +26,6 @@ class Uzawa(Loop):
         cs = apg.cs
         self.lam = cs.vec()
         self.l_new, self.un = cs.vec(), cs.vec()
-        self.first_apg = None
 
     def solve(self, x, l, g=None):
         """Saddle point for slip bound F g: x (start, then u) and l (start, then l) in place."""
@@ -41,8 +40,6 @@ class Uzawa(Loop):
         while reason is None:
             k += 1
             apg.solve(x, l, lam)
-            if self.first_apg is None:
-                self.first_apg = apg.iterations
             cs.normal_displacement(x, self.un)
             self.l_new.waxpy(apg.r, self.un, l)           # l + r u_nu
             self.l_new.pointwiseMax(self.l_new, cs.zero)
