@@ -3,7 +3,10 @@
 g^0 = 0;  (u^t, l^t) = saddle point of the Tresca problem with slip bound F g^t;
 g^{t+1} = l^t (= -sigma_nu(u^t)).  Stop when ||g^{t+1} - g^t|| / ||g^{t+1}|| < rtol.
 Faithful mode (the paper): each Uzawa run starts from l = 0 and x = 0.
--fp_warm_start: start each Uzawa run from the previous (x, l) instead.
+-fp_warm_start none|x|xl: start each Uzawa run from the previous x (and l) instead
+  (true = xl, false = none).
+-fp_inexact <eta>: Uzawa tolerance max(uzawa rtol, eta * last fixed-point change)
+  (default 0: off).
 """
 from petsc4py import PETSc
 
@@ -26,29 +29,43 @@ class FixedPoint(Loop):
         cs = uzawa.apg.cs
         self.g = cs.vec()          # g^t, the slip bound used in the last solve
         self.g_new = cs.vec()
-        self.warm_start = False
+        self.warm_start = "none"
+        self.inexact = 0.0
 
     def set_from_options(self):
         super().set_from_options()
-        self.warm_start = PETSc.Options(self.prefix).getBool("warm_start", self.warm_start)
+        o = PETSc.Options(self.prefix)
+        ws = o.getString("warm_start", self.warm_start).lower()
+        ws = {"true": "xl", "1": "xl", "yes": "xl", "false": "none", "0": "none",
+              "no": "none", "": "xl"}.get(ws, ws)
+        if ws not in ("none", "x", "xl"):
+            raise ValueError(f"-fp_warm_start must be none, x or xl, got {ws!r}")
+        self.warm_start = ws
+        self.inexact = o.getReal("inexact", self.inexact)
+        if not 0.0 <= self.inexact < 1.0:
+            raise ValueError(f"-fp_inexact must be in [0, 1), got {self.inexact}")
 
     def solve(self, x, l):
         """Fixed point g = l(g); x, l are overwritten with u and the final multiplier."""
         _EV.begin()
         self.g.set(0.0)
-        t, reason = 0, None
+        t, reason, last = 0, None, 1.0
         while reason is None:
             t += 1
-            if not self.warm_start:
+            if self.warm_start == "none":
                 x.set(0.0)
+            if self.warm_start != "xl":
                 l.set(0.0)
+            self.uzawa.loose_rtol = self.inexact * last if self.inexact > 0.0 else None
             self.uzawa.solve(x, l, self.g)
             self.g_new.waxpy(-1.0, self.g, l)              # g^{t+1} - g^t
             change, norm = self.g_new.norm(), l.norm()
             reason = self.test(t, change, norm)
+            last = min(self.residual, 1.0)
             if reason is None:
                 l.copy(self.g)                             # g <- g^{t+1}
             self._monitor(t, self.residual, f"  (Uzawa its {self.uzawa.iterations})")
+        self.uzawa.loose_rtol = None
         _EV.end()
         self.finish(t, reason)
         return x, l

@@ -53,6 +53,7 @@ class Loop:
         self.reason = None
         self.residual = math.nan
         self.converged = True        # of every call so far
+        self.loose_rtol = None       # inexact mode: the outer loop's looser tolerance, if any
 
     def set_from_options(self):
         o = PETSc.Options(self.prefix)
@@ -85,11 +86,15 @@ class Loop:
             self.residual = 0.0 if change == 0.0 else math.inf
             return CONVERGED_ZERO if change == 0.0 else None
         self.residual = change / norm
-        if self.residual < self.rtol:
+        if self.residual < self.current_rtol():
             return CONVERGED_RTOL
         if it >= self.max_it:
             return DIVERGED_MAX_IT
         return None
+
+    def current_rtol(self):
+        """rtol, or the looser tolerance an outer loop set for this call (inexact mode)."""
+        return self.rtol if self.loose_rtol is None else max(self.rtol, self.loose_rtol)
 
     def finish(self, it, reason):
         self.iterations = it

@@ -15,8 +15,9 @@ from . import fem, mesh
 from .apg import APG
 from .contactset import ContactSet
 from .fixedpoint import FixedPoint
+from .newton import SemismoothNewton
 from .scene import AXES
-from .uzawa import Uzawa
+from .uzawa import INNER, Uzawa
 
 
 class ContactProblem:
@@ -102,18 +103,33 @@ class ContactProblem:
             raise RuntimeError(f"linear elasticity KSP diverged: reason "
                                f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} its")
         self.ksp_iterations = ksp.getIterationNumber()
-        self.fp = self.uzawa = self.apg = None
+        self.fp = self.uzawa = self.apg = self.inner = None
         self.l = self.g = None
         ksp.destroy()
+
+    def _inner_solver(self):
+        """The Uzawa subproblem's solver from -uzawa_inner (apg, the paper's, or ssn)."""
+        sol, cs = self.scene["solver"], self.cs
+        kind = PETSc.Options().getString("uzawa_inner", str(sol.get("uzawa_inner", "apg")))
+        if kind not in INNER:
+            raise ValueError(f"-uzawa_inner must be one of {', '.join(INNER)}, got {kind!r}")
+        if kind == "ssn":
+            inner = SemismoothNewton(self.A, self.b, cs, sol["uzawa_r"], self.clamped,
+                                     self.diag_scale, rtol=sol.get("ssn_rtol", 1e-10),
+                                     max_it=int(sol.get("ssn_max_it", 100)))
+        else:
+            inner = APG(self.A, self.b, cs, sol["uzawa_r"], rtol=sol["apg_rtol"],
+                        max_it=int(sol.get("apg_max_it", 1000000)))
+        inner.set_from_options()
+        return inner
 
     def _solve_contact(self):
         sol = self.scene["solver"]
         cs = self.cs
-        self.apg = APG(self.A, self.b, cs, sol["uzawa_r"], rtol=sol["apg_rtol"],
-                       max_it=int(sol.get("apg_max_it", 1000000)))
-        self.uzawa = Uzawa(self.apg, rtol=sol["uzawa_rtol"],
+        self.inner = self._inner_solver()
+        self.apg = self.inner if isinstance(self.inner, APG) else None
+        self.uzawa = Uzawa(self.inner, rtol=sol["uzawa_rtol"],
                            max_it=int(sol.get("uzawa_max_it", 1000)))
-        self.apg.set_from_options()
         self.uzawa.set_from_options()
         self.l = cs.vec()
         if cs.has_friction:
@@ -131,17 +147,24 @@ class ContactProblem:
 
     @property
     def converged(self):
-        loops = [lp for lp in (self.fp, self.uzawa, self.apg) if lp is not None]
+        loops = [lp for lp in (self.fp, self.uzawa, self.inner) if lp is not None]
         return all(lp.converged for lp in loops)
 
     def iterations(self):
-        """Table 1's counts: fixed point, Uzawa (total, mean per fixed-point step), APG."""
-        if self.apg is None:
-            return {"fixed_point": 0, "uzawa_total": 0, "uzawa_mean": 0.0,
-                    "apg_first": 0, "apg_total": 0}
+        """Table 1's counts: fixed point, Uzawa (total, mean per fixed-point step), inner
+        solver (first call, total; APG columns are 0 when the inner solver is SSN)."""
+        if self.inner is None:
+            return {"fixed_point": 0, "uzawa_total": 0, "uzawa_mean": 0.0, "inner": "none",
+                    "inner_first": 0, "inner_total": 0, "apg_first": 0, "apg_total": 0,
+                    "ksp_total": getattr(self, "ksp_iterations", 0)}
         fp = self.fp.iterations if self.fp is not None else 0
         uz = self.uzawa.total_iterations
+        inn = self.inner
+        apg = self.apg is not None
         return {"fixed_point": fp, "uzawa_total": uz,
                 "uzawa_mean": uz / max(self.uzawa.calls, 1),
-                "apg_first": self.apg.first_iterations or 0,
-                "apg_total": self.apg.total_iterations}
+                "inner": getattr(inn, "name", "apg"), "inner_first": inn.first_iterations or 0,
+                "inner_total": inn.total_iterations,
+                "apg_first": (inn.first_iterations or 0) if apg else 0,
+                "apg_total": inn.total_iterations if apg else 0,
+                "ksp_total": getattr(inn, "ksp_iterations", 0)}

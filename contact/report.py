@@ -9,7 +9,10 @@ def _tolerances(problem):
     """The tolerances the loops used (options included), else the scene's."""
     sol = problem.scene["solver"]
     loops = {"apg_rtol": problem.apg, "uzawa_rtol": problem.uzawa, "fp_rtol": problem.fp}
-    return {k: (lp.rtol if lp is not None else sol[k]) for k, lp in loops.items()}
+    tol = {k: (lp.rtol if lp is not None else sol[k]) for k, lp in loops.items()}
+    if problem.inner is not None and problem.apg is None:
+        tol[problem.inner.prefix + "rtol"] = problem.inner.rtol
+    return tol
 
 
 def summary(problem, time_total):
@@ -41,20 +44,24 @@ def summary(problem, time_total):
     }
 
 
-HEADER = (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {'APG(1st)':>9} {'Uzawa(mean)':>11} "
-          f"{'FP':>4} {'time, s':>9}")
+def header(s):
+    inner = s["iterations"].get("inner", "apg")
+    inner = "APG" if inner in ("apg", "none") else inner.upper()
+    return (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {inner + '(1st)':>9} {'Uzawa(mean)':>11} "
+            f"{'FP':>4} {'time, s':>9}")
 
 
 def table_line(s):
     it = s["iterations"]
-    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {it['apg_first']:>9} "
+    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {it['inner_first']:>9} "
             f"{it['uzawa_mean']:>11.1f} {it['fixed_point']:>4} {s['time_s']['total']:>9.2f}")
 
 
 def print_summary(comm, s, outdir=None):
     r = s["residuals"]
-    lines = [HEADER, table_line(s),
-             f"mode {s['mode']}, ranks {s['ranks']}, APG total {s['iterations']['apg_total']}, "
+    lines = [header(s), table_line(s),
+             f"mode {s['mode']}, ranks {s['ranks']}, "
+             f"{s['iterations']['inner'].upper()} total {s['iterations']['inner_total']}, "
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "

@@ -1,15 +1,24 @@
 """Uzawa iterations on the modified Lagrangian (given friction g).
 
 M(v, l) = J_g(v) + 1/(2r) sum_j w_j [((l_j + r v_j.nu)^+)^2 - l_j^2]
-    u^{k+1} = argmin_v M(v, l^k)            (APG, warm-started from u^k)
+    u^{k+1} = argmin_v M(v, l^k)            (inner solver: APG or SSN, from u^k)
     l^{k+1} = (l^k + r u_nu^{k+1})^+ ,  u_nu = -u3
 Stop when ||l^{k+1} - l^k|| / ||l^{k+1}|| < rtol (both zero: no contact, converged).
+Options (prefix -uzawa_):
+  -uzawa_inner apg|ssn      inner solver: accelerated proximal gradient (the paper's,
+                            default) or semismooth Newton (contact/newton.py)
+  -uzawa_warm_start <bool>  start the inner solve from u^k (default true, the paper's);
+                            false: from 0 every time
+  -uzawa_inexact <eta>      inexact inner solves: inner tolerance max(inner rtol,
+                            eta * last Uzawa relative change) (default 0: off)
 """
 from petsc4py import PETSc
 
 from .loop import Loop
 
 _EV = PETSc.Log.Event("Uzawa")
+
+INNER = ("apg", "ssn")
 
 
 class Uzawa(Loop):
@@ -20,34 +29,54 @@ class Uzawa(Loop):
     indent = 2
     hint = "raise -uzawa_max_it"
 
-    def __init__(self, apg, rtol=1e-6, max_it=1000):
-        super().__init__(apg.comm, rtol, max_it)
-        self.apg = apg
-        cs = apg.cs
+    def __init__(self, inner, rtol=1e-6, max_it=1000):
+        super().__init__(inner.comm, rtol, max_it)
+        self.inner = inner
+        self.warm_start = True
+        self.inexact = 0.0
+        cs = inner.cs
         self.lam = cs.vec()
         self.l_new, self.un = cs.vec(), cs.vec()
 
+    @property
+    def apg(self):          # the inner solver (kept for code that predates -uzawa_inner)
+        return self.inner
+
+    def set_from_options(self):
+        super().set_from_options()
+        o = PETSc.Options(self.prefix)
+        self.warm_start = o.getBool("warm_start", self.warm_start)
+        self.inexact = o.getReal("inexact", self.inexact)
+        if not 0.0 <= self.inexact < 1.0:
+            raise ValueError(f"-uzawa_inexact must be in [0, 1), got {self.inexact}")
+
     def solve(self, x, l, g=None):
         """Saddle point for slip bound F g: x (start, then u) and l (start, then l) in place."""
-        cs, apg = self.apg.cs, self.apg
+        inner = self.inner
+        cs = inner.cs
         lam = None
         if g is not None and cs.has_friction:
             self.lam.pointwiseMult(cs.F, g)
             self.lam.pointwiseMult(self.lam, cs.w)         # lambda_j = F_j g_j w_j
             lam = self.lam
         _EV.begin()
-        k, reason = 0, None
+        k, reason, last = 0, None, 1.0
         while reason is None:
             k += 1
-            apg.solve(x, l, lam)
+            if not self.warm_start:
+                x.set(0.0)
+            inner.loose_rtol = self.inexact * last if self.inexact > 0.0 else None
+            inner.solve(x, l, lam)
             cs.normal_displacement(x, self.un)
-            self.l_new.waxpy(apg.r, self.un, l)           # l + r u_nu
+            self.l_new.waxpy(inner.r, self.un, l)         # l + r u_nu
             self.l_new.pointwiseMax(self.l_new, cs.zero)
             l.axpy(-1.0, self.l_new)                       # l <- l - l_new (the change)
             change, norm = l.norm(), self.l_new.norm()
             self.l_new.copy(l)
             reason = self.test(k, change, norm)
-            self._monitor(k, self.residual, f"  (APG its {apg.iterations})")
+            last = min(self.residual, 1.0)
+            self._monitor(k, self.residual, f"  ({inner.title} its {inner.iterations})")
+        inner.loose_rtol = None
         _EV.end()
         self.finish(k, reason)
         return x, l

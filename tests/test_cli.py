@@ -37,7 +37,8 @@ def test_run_writes_results(mpi_tmp_path):
             js = json.load(f)
         assert KEYS <= set(js)
         assert set(js["iterations"]) == {"fixed_point", "uzawa_total", "uzawa_mean",
-                                         "apg_first", "apg_total"}
+                                         "apg_first", "apg_total", "inner", "inner_first",
+                                         "inner_total", "ksp_total"}
         assert set(js["residuals"]) == {"penetration", "complementarity", "coulomb"}
         with h5py.File(os.path.join(out, "solution.h5")) as f:
             n = (3 * nd + 1) * (nd + 1) ** 2

@@ -1,0 +1,268 @@
+"""Semismooth Newton (SSN) for the Uzawa subproblem  min_x Theta(x) = G(x) + H(x).
+
+G, H as in contact/apg.py: G = 1/2 <Ax,x> - <b,x> + 1/(2r) sum_j w_j [((l_j + r x_j.nu)^+)^2
+- l_j^2], H = sum_j lambda_j |x_j,tau|. The minimiser solves the nonsmooth equation
+    x = prox_{alpha H}(x - alpha grad G(x))        (alpha_j > 0 per contact node).
+Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives each step
+    (A + P + T) dx = -(grad G(x) + s),  dx_tau,j = -x_tau,j on stick nodes (eliminated),
+  P = r w_j on the x3 dof of nodes with l_j + r u_nu,j > 0 (the active penalty),
+  z_j = x_tau,j - alpha_j grad_tau,j G, slip nodes |z_j| > alpha_j lambda_j:
+      n_j = z_j/|z_j|,  c_j = lambda_j / (|z_j| - alpha_j lambda_j),
+      T_j = c_j (I - n_j n_j^T),  s_j = lambda_j n_j + T_j x_tau,j
+  (T_j is the curvature of lambda_j |x_tau| at the predicted slip direction), alpha_j =
+  1 / max(A_ii) over the node's tangential dofs.
+The system is SPD: KSP with prefix -ssn_ (default CG + GAMG, block size 3, rigid-body
+near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
+-ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
+Theta (convex) globalises the step (-ssn_linesearch false: full steps).
+-ssn_pc_reuse (default true): keep the preconditioner while the active, stick and slip
+sets are unchanged. Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
+contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .loop import CONVERGED_RTOL, Loop
+
+_EV_ITER = PETSc.Log.Event("SSN iterations")
+_EV_KSP = PETSc.Log.Event("SSN linear solve")
+_EV_MAT = PETSc.Log.Event("SSN assemble")
+
+DIVERGED_LINE_SEARCH = "DIVERGED_LINE_SEARCH"
+DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
+
+
+class SemismoothNewton(Loop):
+    """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``."""
+
+    prefix = "ssn_"
+    title = "SSN"
+    indent = 4
+    hint = "raise -ssn_max_it, or try -ssn_linesearch true"
+    name = "ssn"
+
+    def __init__(self, A, b, cset, r, clamped, diag_scale, rtol=1e-10, max_it=100):
+        super().__init__(A.getComm(), rtol, max_it)
+        self.A, self.b, self.cs, self.r = A, b, cset, float(r)
+        self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
+        self.diag_scale = float(diag_scale)
+        self.linesearch = True
+        self.pc_reuse = True
+        self._sets = self._pc_sets = None
+        self.pc_setups = 0
+        self.max_halvings = 30
+        self.first_iterations = None
+        self.ksp_iterations = 0
+        self.line_search_cuts = 0
+        self.n_stick = self.n_slip = 0
+        v = A.createVecRight()
+        self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt = \
+            (v.duplicate() for _ in range(6))
+        v.destroy()
+        self.K = None
+        self.ksp = PETSc.KSP().create(comm=self.comm)
+        self.ksp.setOptionsPrefix(self.prefix)
+        self.ksp.setType("cg")
+        self.ksp.getPC().setType("gamg")
+        self.ksp.setTolerances(rtol=1e-9, atol=1e-50, max_it=2000)
+        opts = PETSc.Options()
+        # the operator changes every step: GAMG must not reuse the first step's interpolation
+        # (with it, the smoothers of a penalised step went indefinite in our runs)
+        if not opts.hasName(self.prefix + "pc_gamg_reuse_interpolation"):
+            opts.setValue(self.prefix + "pc_gamg_reuse_interpolation", "false")
+        cs = cset
+        self.c0, self.c1, self.c2 = cs.vec(), cs.vec(), cs.vec()
+        d = A.getDiagonal()
+        cs.gather(d, self.c0, 0)
+        cs.gather(d, self.c1, 1)
+        self.alpha = 1.0 / np.maximum(cs.local_array(self.c0), cs.local_array(self.c1))
+        d.destroy()
+        self.w = cs.local_array(cs.w)
+
+    def set_from_options(self):
+        super().set_from_options()
+        o = PETSc.Options(self.prefix)
+        self.linesearch = o.getBool("linesearch", self.linesearch)
+        self.pc_reuse = o.getBool("pc_reuse", self.pc_reuse)
+        self.ksp.setFromOptions()
+
+    # -- pieces --------------------------------------------------------------------------
+    def _contact(self, x, l):
+        """Owned contact arrays: x1, x2, x3 and the penalty argument l + r u_nu."""
+        cs = self.cs
+        out = []
+        for c, v in enumerate((self.c0, self.c1, self.c2)):
+            cs.gather(x, v, c)
+            out.append(v.getArray(readonly=True).copy())
+        la = l.getArray(readonly=True)
+        return out[0], out[1], out[2], la - self.r * out[2]
+
+    def objective(self, x, Ax, l, lam):
+        """Theta(x) = 1/2 <Ax,x> - <b,x> + penalty + sum lambda_j |x_tau,j| (Ax given)."""
+        x1, x2, _, p = self._contact(x, l)
+        la = l.getArray(readonly=True)
+        loc = np.sum(self.w * (np.maximum(p, 0.0) ** 2 - la ** 2)) / (2.0 * self.r)
+        if lam is not None:
+            loc += np.sum(lam * np.hypot(x1, x2))
+        loc = self.comm.tompi4py().allreduce(loc)
+        return 0.5 * Ax.dot(x) - self.b.dot(x) + loc
+
+    def _gradient(self, x, Ax, l):
+        """grad G(x) = A x - b - w (l - r x3)^+ on the x3 dofs (Ax given)."""
+        g = self.grad
+        g.waxpy(-1.0, self.b, Ax)
+        _, _, _, p = self._contact(x, l)
+        self.c2.setArray(-self.w * np.maximum(p, 0.0))
+        self.cs.scatter(self.c2, g, 2, mode=PETSc.InsertMode.ADD_VALUES)
+        return g, p
+
+    def _system(self, x, grad, p, lam):
+        """K = A + P + T and rhs = -(grad + s), with stick tangential dofs eliminated."""
+        _EV_MAT.begin()
+        cs = self.cs
+        if self.K is None:
+            self.K = self.A.duplicate(copy=True)
+            self.K.setNearNullSpace(self.A.getNearNullSpace())
+            self.K.setOption(PETSc.Mat.Option.SPD, True)
+        else:
+            self.A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        K, rhs = self.K, self.rhs
+        grad.copy(rhs)
+        rhs.scale(-1.0)
+        add = PETSc.InsertMode.ADD_VALUES
+        active = p >= 0.0          # closed set: from x = l = 0 every node starts active
+        self.c2.setArray(np.where(active, self.r * self.w, 0.0))
+        diag = K.createVecRight()
+        diag.set(0.0)
+        cs.scatter(self.c2, diag, 2, mode=add)
+        stick_rows = np.empty(0, dtype=PETSc.IntType)
+        dvals = None
+        if lam is not None:
+            cs.gather(x, self.c0, 0)
+            cs.gather(x, self.c1, 1)
+            x1 = self.c0.getArray(readonly=True).copy()
+            x2 = self.c1.getArray(readonly=True).copy()
+            cs.gather(grad, self.c0, 0)
+            cs.gather(grad, self.c1, 1)
+            g1 = self.c0.getArray(readonly=True)
+            g2 = self.c1.getArray(readonly=True)
+            z1, z2 = x1 - self.alpha * g1, x2 - self.alpha * g2
+            nz = np.hypot(z1, z2)
+            tau = self.alpha * lam
+            fric = lam > 0.0
+            slip = fric & (nz > tau)
+            stick = fric & ~slip
+            # slip: curvature c (I - n n^T) and s = lambda n + c (I - n n^T) x_tau
+            ns = np.where(slip, nz, 1.0)
+            n1, n2 = np.where(slip, z1 / ns, 0.0), np.where(slip, z2 / ns, 0.0)
+            dA = 1.0 / self.alpha
+            c = np.where(slip, lam / np.maximum(nz - tau, 1e-300), 0.0)
+            c = np.minimum(c, 1e8 * dA)                      # nearly stuck: bounded curvature
+            px = x1 * n1 + x2 * n2                           # n . x_tau
+            s1 = lam * n1 + c * (x1 - n1 * px)
+            s2 = lam * n2 + c * (x2 - n2 * px)
+            self.c0.setArray(-np.where(slip, s1, 0.0))
+            self.c1.setArray(-np.where(slip, s2, 0.0))
+            cs.scatter(self.c0, rhs, 0, mode=add)
+            cs.scatter(self.c1, rhs, 1, mode=add)
+            self.c0.setArray(c * (1.0 - n1 * n1))
+            self.c1.setArray(c * (1.0 - n2 * n2))
+            cs.scatter(self.c0, diag, 0, mode=add)
+            cs.scatter(self.c1, diag, 1, mode=add)
+            k = np.flatnonzero(slip)
+            if k.size:                                       # off-diagonal -c n1 n2
+                d0, d1 = cs.dofs[0][k], cs.dofs[1][k]
+                off = -c[k] * n1[k] * n2[k]
+                R = np.concatenate([d0, d1]).reshape(-1, 1).astype(PETSc.IntType)
+                C = np.concatenate([d1, d0]).reshape(-1, 1).astype(PETSc.IntType)
+                V = np.concatenate([off, off]).reshape(-1, 1, 1)
+                K.setValuesRCV(R, C, V, add)
+            k = np.flatnonzero(stick)
+            stick_rows = np.concatenate([cs.dofs[0][k], cs.dofs[1][k]]).astype(PETSc.IntType)
+            dvals = np.concatenate([-x1[k], -x2[k]])
+            self.n_stick, self.n_slip = int(stick.sum()), int(slip.sum())
+            self._sets = (active, stick, slip)
+        else:
+            self._sets = (active,)
+        K.assemble()
+        K.setDiagonal(diag, addv=add)
+        diag.destroy()
+        # stick nodes: dx_tau = -x_tau, eliminated symmetrically (rows and columns)
+        self.dx.set(0.0)
+        if dvals is not None and stick_rows.size:
+            self.dx.setValues(stick_rows, dvals)
+        self.dx.assemble()
+        rows = self.comm.tompi4py().allreduce(stick_rows.size)
+        if rows:
+            K.zeroRowsColumns(stick_rows, self.diag_scale, self.dx, rhs)
+        _EV_MAT.end()
+        return K, rhs
+
+    # -- solve ---------------------------------------------------------------------------
+    def solve(self, x, l, lam):
+        """Minimise Theta from the start x (overwritten); l multiplier, lam = F g w or None."""
+        lam_a = None
+        if lam is not None and self.cs.size and lam.norm(PETSc.NormType.INFINITY) > 0:
+            lam_a = lam.getArray(readonly=True).copy()
+        _EV_ITER.begin()
+        self.A.mult(x, self.Ax)
+        theta = self.objective(x, self.Ax, l, lam_a)
+        it, reason = 0, None
+        while reason is None:
+            it += 1
+            grad, p = self._gradient(x, self.Ax, l)
+            K, rhs = self._system(x, grad, p, lam_a)
+            _EV_KSP.begin()
+            self.ksp.setOperators(K)
+            same = self._same_sets()
+            self.ksp.getPC().setReusePreconditioner(same)
+            if not same:
+                self._pc_sets = self._sets
+                self.pc_setups += 1
+            self.ksp.solve(rhs, self.dx)
+            _EV_KSP.end()
+            self.ksp_iterations += self.ksp.getIterationNumber()
+            if self.ksp.getConvergedReason() < 0:
+                self.residual = float("nan")
+                reason = DIVERGED_LINEAR_SOLVE
+                break
+            t, cuts = 1.0, 0
+            while True:
+                self.xt.waxpy(t, self.dx, x)
+                self.A.mult(self.xt, self.Axt)
+                theta_t = self.objective(self.xt, self.Axt, l, lam_a)
+                if not self.linesearch or theta_t <= theta + 1e-14 * abs(theta) \
+                        or cuts >= self.max_halvings:
+                    break
+                t *= 0.5
+                cuts += 1
+            self.line_search_cuts += cuts
+            change, norm = t * self.dx.norm(), self.xt.norm()
+            if cuts >= self.max_halvings and theta_t > theta + 1e-14 * abs(theta):
+                # no decrease along dx: converged to rounding, or a failed step
+                self.residual = self.dx.norm() / max(norm, 1e-300)
+                reason = DIVERGED_LINE_SEARCH if self.residual > 1e3 * self.rtol else CONVERGED_RTOL
+                break
+            x.swap(self.xt)
+            self.Ax.swap(self.Axt)
+            theta = theta_t
+            reason = self.test(it, change, norm)
+            self._monitor(it, self.residual, f"  (KSP its {self.ksp.getIterationNumber()}, "
+                                             f"step {t:g})")
+        _EV_ITER.end()
+        if self.first_iterations is None:
+            self.first_iterations = it
+        self.finish(it, reason)
+        return x
+
+    def _same_sets(self):
+        """True when -ssn_pc_reuse and the active, stick and slip sets are those the
+        preconditioner was built with (then only the values of K changed a little)."""
+        if not self.pc_reuse or self._pc_sets is None or len(self._pc_sets) != len(self._sets):
+            return False
+        same = all(np.array_equal(a, b) for a, b in zip(self._sets, self._pc_sets))
+        return bool(self.comm.tompi4py().allreduce(same, op=MPI.LAND))
+
+    def lipschitz(self):
+        return None
