@@ -20,6 +20,14 @@ from .scene import AXES
 from .uzawa import INNER, Uzawa
 
 
+#: option presets; "fast" = semismooth Newton inner solver, warm starts, inexact loops
+SOLVER_MODES = {
+    "faithful": {},
+    "fast": {"uzawa_inner": "ssn", "fp_warm_start": "xl", "uzawa_inexact": "0.1",
+             "fp_inexact": "0.1", "ssn_pc_gamg_agg_nsmooths": "0", "ssn_ksp_rtol": "1e-6"},
+}
+
+
 class ContactProblem:
     """Builds A, b and the contact set of `scene` on `comm`; `solve()` runs the loops."""
 
@@ -107,6 +115,21 @@ class ContactProblem:
         self.l = self.g = None
         ksp.destroy()
 
+    def _apply_solver_mode(self):
+        """-solver_mode faithful (the paper's loops, default) | fast: the options of FAST
+        become defaults (anything given on the command line still wins)."""
+        sol = self.scene["solver"]
+        self.solver_mode = PETSc.Options().getString("solver_mode",
+                                                     str(sol.get("mode", "faithful")))
+        if self.solver_mode not in SOLVER_MODES:
+            raise ValueError(f"-solver_mode must be one of {', '.join(SOLVER_MODES)}, "
+                             f"got {self.solver_mode!r}")
+        opts = PETSc.Options()
+        added = [k for k in SOLVER_MODES[self.solver_mode] if not opts.hasName(k)]
+        for k in added:
+            opts.setValue(k, SOLVER_MODES[self.solver_mode][k])
+        return added
+
     def _inner_solver(self):
         """The Uzawa subproblem's solver from -uzawa_inner (apg, the paper's, or ssn)."""
         sol, cs = self.scene["solver"], self.cs
@@ -126,6 +149,14 @@ class ContactProblem:
     def _solve_contact(self):
         sol = self.scene["solver"]
         cs = self.cs
+        added = self._apply_solver_mode()
+        try:
+            self._loops(sol, cs)
+        finally:                                 # the preset lasts for this solve only
+            for k in added:
+                PETSc.Options().delValue(k)
+
+    def _loops(self, sol, cs):
         self.inner = self._inner_solver()
         self.apg = self.inner if isinstance(self.inner, APG) else None
         self.uzawa = Uzawa(self.inner, rtol=sol["uzawa_rtol"],

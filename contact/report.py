@@ -26,6 +26,7 @@ def summary(problem, time_total):
         "petsc_version": "%d.%d.%d" % PETSc.Sys.getVersion(),
         "petsc4py_version": petsc4py.__version__,
         "mode": problem.mode,
+        "solver_mode": getattr(problem, "solver_mode", "faithful"),
         "partitioner": problem.partitioner,
         "dofs": problem.n_dofs,
         "contact_nodes": problem.cs.n_paper if problem.cs is not None else 0,
