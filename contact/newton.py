@@ -16,7 +16,7 @@ near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 -ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
 Theta (convex) globalises the step (-ssn_linesearch false: full steps).
 -ssn_pc_reuse (default true): keep the preconditioner while the active, stick and slip
-sets are unchanged. Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
+sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off). Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
 contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
 """
 import numpy as np
@@ -86,6 +86,8 @@ class SemismoothNewton(Loop):
         self.linesearch = o.getBool("linesearch", self.linesearch)
         self.pc_reuse = o.getBool("pc_reuse", self.pc_reuse)
         self.ksp.setFromOptions()
+        if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
+            self.pc_reuse = False        # a stale factorisation would be a wrong Jacobian
 
     # -- pieces --------------------------------------------------------------------------
     def _contact(self, x, l):

@@ -1,0 +1,103 @@
+"""Semismooth Newton inner solver, warm starts, inexact loops and the fast preset: each
+reaches the discrete solution of the independent conic solver (tests/reference_socp.py)."""
+import numpy as np
+import pytest
+from conftest import gather, only_in_parallel, paper_scene, rel_err, skip_in_parallel, solve
+from petsc4py import PETSc
+from reference_socp import solve_coulomb, solve_tresca
+from test_reference import _discrete
+
+from contact.loop import ConvergenceError
+
+TIGHT = dict(uzawa_r=1e6, ssn_rtol=1e-13, uzawa_rtol=1e-11, fp_rtol=1e-10)
+
+
+def _set(**opts):
+    o = PETSc.Options()
+    for k, v in opts.items():
+        o.setValue(k, str(v))
+
+
+@skip_in_parallel
+def test_ssn_frictionless_against_conic_solver():
+    _set(uzawa_inner="ssn", ssn_ksp_rtol=1e-12)
+    sc = paper_scene(nd=2, **TIGHT)
+    sc["contact"]["friction"] = 0.0
+    pr = solve(sc, PETSc.COMM_SELF)
+    assert pr.inner.name == "ssn" and pr.apg is None
+    d = _discrete(pr)
+    ref = solve_tresca(s=np.zeros(pr.cs.size), **d)
+    assert rel_err(pr.x.getArray(), ref["u"]) < 1e-7
+    assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-6
+    # Newton: a handful of steps per Uzawa iteration, not thousands
+    assert pr.inner.total_iterations <= 10 * pr.uzawa.total_iterations
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("preset", [
+    {"uzawa_inner": "ssn", "ssn_ksp_rtol": 1e-12},
+    {"uzawa_inner": "ssn", "ssn_ksp_type": "preonly", "ssn_pc_type": "cholesky"},
+    {"solver_mode": "fast", "ssn_ksp_rtol": 1e-12},
+    {"apg_restart": "gradient", "fp_warm_start": "xl", "uzawa_inexact": 0.1,
+     "fp_inexact": 0.1, "apg_rtol": 1e-14},
+], ids=["ssn-gamg", "ssn-cholesky", "fast", "apg-warm-inexact"])
+@pytest.mark.parametrize("friction", [0.3, "where(x < 1.5, 0.6, 0.0)"])
+def test_variants_against_conic_solver(preset, friction):
+    _set(**preset)
+    sc = paper_scene(nd=2, **TIGHT)
+    sc["contact"]["friction"] = friction
+    pr = solve(sc, PETSc.COMM_SELF)
+    d = _discrete(pr)
+    ref = solve_coulomb(F=pr.cs.local_array(pr.cs.F), tol=1e-11, **d)
+    assert rel_err(pr.x.getArray(), ref["u"]) < 1e-6
+    assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-6
+    if pr.apg is None:
+        assert pr.inner.n_stick + pr.inner.n_slip > 0       # friction was active
+
+
+def test_ssn_at_the_papers_r_equals_apg(comm):
+    """r = 1e8 (the paper's): Newton's answer equals the faithful APG one to the APG's
+    accuracy (the augmented Lagrangian is exact for any r)."""
+    sc = paper_scene(nd=2, apg_rtol=1e-14, uzawa_rtol=1e-10, fp_rtol=1e-10)
+    ref = solve(sc, comm)
+    _set(uzawa_inner="ssn", ssn_rtol=1e-12, ssn_ksp_rtol=1e-12)
+    new = solve(sc, comm)
+    assert rel_err(gather(new)[1], gather(ref)[1]) < 1e-6
+    assert new.fp.iterations == ref.fp.iterations
+    assert new.inner.total_iterations < ref.apg.total_iterations / 100
+
+
+@only_in_parallel
+def test_ssn_two_ranks_equal_one_rank():
+    _set(solver_mode="fast")
+    sc = paper_scene(nd=3, uzawa_rtol=1e-9, fp_rtol=1e-9, ssn_rtol=1e-12)
+    par = solve(sc, PETSc.COMM_WORLD)
+    ser = solve(sc, PETSc.COMM_SELF)
+    assert rel_err(gather(par)[1], gather(ser)[1]) < 1e-7
+    assert par.fp.iterations == ser.fp.iterations
+
+
+def test_linear_solver_failure_names_the_loop(comm):
+    _set(uzawa_inner="ssn", ssn_ksp_max_it=1)
+    with pytest.raises(ConvergenceError, match="SSN loop did not converge: "
+                                               "DIVERGED_LINEAR_SOLVE at iteration 1"):
+        solve(paper_scene(nd=2), comm)
+
+
+@pytest.mark.parametrize("opt,val,msg", [
+    ("uzawa_inner", "cg", "-uzawa_inner must be one of apg, ssn"),
+    ("solver_mode", "quick", "-solver_mode must be one of faithful, fast"),
+    ("fp_warm_start", "u", "-fp_warm_start must be none, x or xl"),
+    ("uzawa_inexact", "2", r"-uzawa_inexact must be in \[0, 1\)"),
+])
+def test_bad_variant_options(comm, opt, val, msg):
+    _set(**{opt: val})
+    with pytest.raises(ValueError, match=msg):
+        solve(paper_scene(nd=1), comm)
+
+
+def test_fast_preset_is_scoped_to_its_solve(comm):
+    _set(solver_mode="fast")
+    pr = solve(paper_scene(nd=2), comm)
+    assert pr.inner.name == "ssn" and pr.fp.warm_start == "xl"
+    assert not PETSc.Options().hasName("uzawa_inner")      # the preset left nothing behind
