@@ -16,7 +16,8 @@ near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 -ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
 Theta (convex) globalises the step (-ssn_linesearch false: full steps).
 -ssn_pc_reuse (default true): keep the preconditioner while the active, stick and slip
-sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off). Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
+sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off);
+-ssn_pc_lag N: also keep it for N-1 steps after each set-up even if the sets changed. Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
 contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
 """
 import numpy as np
@@ -49,6 +50,8 @@ class SemismoothNewton(Loop):
         self.diag_scale = float(diag_scale)
         self.linesearch = True
         self.pc_reuse = True
+        self.pc_lag = 1
+        self._since_setup = 0
         self._sets = self._pc_sets = None
         self.pc_setups = 0
         self.max_halvings = 30
@@ -85,6 +88,9 @@ class SemismoothNewton(Loop):
         o = PETSc.Options(self.prefix)
         self.linesearch = o.getBool("linesearch", self.linesearch)
         self.pc_reuse = o.getBool("pc_reuse", self.pc_reuse)
+        self.pc_lag = o.getInt("pc_lag", self.pc_lag)
+        if self.pc_lag < 1:
+            raise ValueError(f"-ssn_pc_lag must be >= 1, got {self.pc_lag}")
         self.ksp.setFromOptions()
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a stale factorisation would be a wrong Jacobian
@@ -219,9 +225,11 @@ class SemismoothNewton(Loop):
             self.ksp.setOperators(K)
             same = self._same_sets()
             self.ksp.getPC().setReusePreconditioner(same)
+            self._since_setup += 1
             if not same:
                 self._pc_sets = self._sets
                 self.pc_setups += 1
+                self._since_setup = 0
             self.ksp.solve(rhs, self.dx)
             _EV_KSP.end()
             self.ksp_iterations += self.ksp.getIterationNumber()
@@ -263,6 +271,8 @@ class SemismoothNewton(Loop):
         preconditioner was built with (then only the values of K changed a little)."""
         if not self.pc_reuse or self._pc_sets is None or len(self._pc_sets) != len(self._sets):
             return False
+        if self._since_setup < self.pc_lag - 1:
+            return True
         same = all(np.array_equal(a, b) for a, b in zip(self._sets, self._pc_sets))
         return bool(self.comm.tompi4py().allreduce(same, op=MPI.LAND))
 
