@@ -10,7 +10,7 @@ Faithful mode (the paper): each Uzawa run starts from l = 0 and x = 0.
 """
 from petsc4py import PETSc
 
-from .loop import Loop
+from .loop import InexactControl, Loop
 
 _EV = PETSc.Log.Event("FixedPoint")
 
@@ -45,23 +45,27 @@ class FixedPoint(Loop):
         if not 0.0 <= self.inexact < 1.0:
             raise ValueError(f"-fp_inexact must be in [0, 1), got {self.inexact}")
 
-    def solve(self, x, l):
-        """Fixed point g = l(g); x, l are overwritten with u and the final multiplier."""
+    def solve(self, x, l, g0=None):
+        """Fixed point g = l(g) from g^0 = g0 (default 0); x, l are overwritten with u and
+        the final multiplier (their values are a start only with -fp_warm_start)."""
         _EV.begin()
-        self.g.set(0.0)
-        t, reason, last = 0, None, 1.0
+        if g0 is None:
+            self.g.set(0.0)
+        else:
+            g0.copy(self.g)
+        t, reason, ctl = 0, None, InexactControl(self.inexact)
         while reason is None:
             t += 1
             if self.warm_start == "none":
                 x.set(0.0)
             if self.warm_start != "xl":
                 l.set(0.0)
-            self.uzawa.loose_rtol = self.inexact * last if self.inexact > 0.0 else None
+            self.uzawa.loose_rtol = ctl.tolerance()
             self.uzawa.solve(x, l, self.g)
             self.g_new.waxpy(-1.0, self.g, l)              # g^{t+1} - g^t
             change, norm = self.g_new.norm(), l.norm()
             reason = self.test(t, change, norm)
-            last = min(self.residual, 1.0)
+            ctl.update(self.residual)
             if reason is None:
                 l.copy(self.g)                             # g <- g^{t+1}
             self._monitor(t, self.residual, f"  (Uzawa its {self.uzawa.iterations})")

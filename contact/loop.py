@@ -114,3 +114,23 @@ class Loop:
             self.log(f"WARNING: {self.title} stopped by {reason} at iteration {it} "
                      f"(rel. change {self.residual:.3e}); continuing as asked")
         return ok
+
+
+class InexactControl:
+    """Inexact inner solves: inner tolerance  min(eta * r_k, cap)  where r_k is the outer
+    loop's last relative change; the cap starts at 1 and shrinks tenfold whenever the outer
+    change fails to halve, so a loop that stalls on crude inner solves gets exact ones."""
+
+    def __init__(self, eta):
+        self.eta = float(eta)
+        self.last = 1.0
+        self.cap = 1.0
+
+    def tolerance(self):
+        return min(self.eta * self.last, self.cap) if self.eta > 0.0 else None
+
+    def update(self, residual):
+        residual = min(residual, 1.0)
+        if residual > 0.5 * self.last:
+            self.cap *= 0.1
+        self.last = residual

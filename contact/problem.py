@@ -6,12 +6,13 @@ eliminated, load b, contact set. Solve, computing only what the scene needs:
   contact, F = 0         -> Uzawa + APG without prox (no fixed point),
   contact, F > 0         -> fixed point on g, Uzawa, APG with prox.
 """
+import copy
 import time
 
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, mesh
+from . import fem, mesh, transfer
 from .apg import APG
 from .contactset import ContactSet
 from .fixedpoint import FixedPoint
@@ -31,7 +32,9 @@ SOLVER_MODES = {
 class ContactProblem:
     """Builds A, b and the contact set of `scene` on `comm`; `solve()` runs the loops."""
 
-    def __init__(self, scene, comm=None):
+    def __init__(self, scene, comm=None, c2f_levels=None):
+        self.c2f_levels = c2f_levels      # None: from -c2f_levels (or the scene)
+        self.coarse_runs = []
         t0 = time.perf_counter()
         self.scene = scene
         self.comm = comm or PETSc.COMM_WORLD
@@ -88,6 +91,33 @@ class ContactProblem:
         self.x.set(0.0)
 
     # -- solve ---------------------------------------------------------------------------
+    def _coarse_start(self):
+        """Coarse-to-fine start (-c2f_levels N): solve the scene on the mesh nd/2 (itself
+        started from nd/4, ..., N levels), prolong x, l, g to this mesh (Q1 interpolation,
+        contact/transfer.py). Returns (l0, g0) contact Vecs, or None."""
+        sol = self.scene["solver"]
+        levels = self.c2f_levels
+        if levels is None:
+            levels = PETSc.Options().getInt("c2f_levels", int(sol.get("c2f_levels", 0)))
+        if levels < 0:
+            raise ValueError(f"-c2f_levels must be >= 0, got {levels}")
+        if levels == 0 or self.nd < 2 or self.scene["mesh"].get("type", "box") != "box":
+            return None
+        sc = copy.deepcopy(self.scene)
+        sc["mesh"]["nd"] = self.nd // 2
+        coarse = ContactProblem(sc, self.comm, c2f_levels=levels - 1).solve()
+        self.coarse_runs = coarse.coarse_runs + [
+            {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
+             "iterations": coarse.iterations()}]
+        transfer.prolong_displacement(coarse, self, coarse.x, self.x)
+        l0, g0 = self.cs.vec(), self.cs.vec()
+        transfer.prolong_contact(coarse, self, coarse.l, l0)
+        if coarse.g is not None:
+            transfer.prolong_contact(coarse, self, coarse.g, g0)
+        PETSc.Sys.Print(f"c2f: started Nd = {self.nd} from the solution at Nd = {coarse.nd}",
+                        comm=self.comm)
+        return l0, g0
+
     def solve(self):
         """Run what the scene needs; returns self with x (and l, g) set."""
         t0 = time.perf_counter()
@@ -157,18 +187,21 @@ class ContactProblem:
                 PETSc.Options().delValue(k)
 
     def _loops(self, sol, cs):
+        start = self._coarse_start()
         self.inner = self._inner_solver()
         self.apg = self.inner if isinstance(self.inner, APG) else None
         self.uzawa = Uzawa(self.inner, rtol=sol["uzawa_rtol"],
                            max_it=int(sol.get("uzawa_max_it", 1000)))
         self.uzawa.set_from_options()
         self.l = cs.vec()
+        if start is not None:
+            start[0].copy(self.l)
         if cs.has_friction:
             self.mode = "coulomb"
             self.fp = FixedPoint(self.uzawa, rtol=sol["fp_rtol"],
                                  max_it=int(sol.get("fp_max_it", 100)))
             self.fp.set_from_options()
-            self.fp.solve(self.x, self.l)
+            self.fp.solve(self.x, self.l, start[1] if start is not None else None)
             self.g = self.fp.g                   # the slip bound of the final solve
         else:
             self.mode = "frictionless"

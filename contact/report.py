@@ -36,6 +36,7 @@ def summary(problem, time_total):
         "tolerances": _tolerances(problem),
         "lipschitz": problem.apg.lipschitz() if problem.apg is not None else None,
         "iterations": problem.iterations(),
+        "coarse_runs": problem.coarse_runs,          # -c2f_levels: the coarse solves first
         "time_s": {"setup": problem.time_setup, "solve": problem.time_solve,
                    "total": time_total},
         "energy": res.energy(problem),

@@ -10,11 +10,12 @@ Options (prefix -uzawa_):
   -uzawa_warm_start <bool>  start the inner solve from u^k (default true, the paper's);
                             false: from 0 every time
   -uzawa_inexact <eta>      inexact inner solves: inner tolerance max(inner rtol,
-                            eta * last Uzawa relative change) (default 0: off)
+                            eta * last Uzawa relative change), safeguarded (see
+                            loop.InexactControl) (default 0: off)
 """
 from petsc4py import PETSc
 
-from .loop import Loop
+from .loop import InexactControl, Loop
 
 _EV = PETSc.Log.Event("Uzawa")
 
@@ -60,12 +61,12 @@ class Uzawa(Loop):
             self.lam.pointwiseMult(self.lam, cs.w)         # lambda_j = F_j g_j w_j
             lam = self.lam
         _EV.begin()
-        k, reason, last = 0, None, 1.0
+        k, reason, ctl = 0, None, InexactControl(self.inexact)
         while reason is None:
             k += 1
             if not self.warm_start:
                 x.set(0.0)
-            inner.loose_rtol = self.inexact * last if self.inexact > 0.0 else None
+            inner.loose_rtol = ctl.tolerance()
             inner.solve(x, l, lam)
             cs.normal_displacement(x, self.un)
             self.l_new.waxpy(inner.r, self.un, l)         # l + r u_nu
@@ -74,7 +75,7 @@ class Uzawa(Loop):
             change, norm = l.norm(), self.l_new.norm()
             self.l_new.copy(l)
             reason = self.test(k, change, norm)
-            last = min(self.residual, 1.0)
+            ctl.update(self.residual)
             self._monitor(k, self.residual, f"  ({inner.title} its {inner.iterations})")
         inner.loose_rtol = None
         _EV.end()

@@ -101,3 +101,14 @@ def test_fast_preset_is_scoped_to_its_solve(comm):
     pr = solve(paper_scene(nd=2), comm)
     assert pr.inner.name == "ssn" and pr.fp.warm_start == "xl"
     assert not PETSc.Options().hasName("uzawa_inner")      # the preset left nothing behind
+
+
+def test_coarse_to_fine_start_reaches_the_same_solution(comm):
+    sc = paper_scene(nd=4, uzawa_rtol=1e-10, fp_rtol=1e-10, ssn_rtol=1e-12)
+    _set(solver_mode="fast", ssn_ksp_rtol=1e-12)
+    ref = solve(sc, comm)
+    _set(c2f_levels=2)
+    c2f = solve(sc, comm)
+    assert [r["nd"] for r in c2f.coarse_runs] == [1, 2]
+    assert rel_err(gather(c2f)[1], gather(ref)[1]) < 1e-7
+    assert rel_err(c2f.cs.local_array(c2f.l), ref.cs.local_array(ref.l)) < 1e-6
