@@ -25,7 +25,8 @@ from .uzawa import INNER, Uzawa
 SOLVER_MODES = {
     "faithful": {},
     "fast": {"uzawa_inner": "ssn", "fp_warm_start": "xl", "uzawa_inexact": "0.1",
-             "fp_inexact": "0.1", "ssn_pc_lag": "5", "ssn_ksp_rtol": "1e-6"},
+             "fp_inexact": "0.1", "ssn_pc_lag": "5", "ssn_ksp_rtol": "1e-3",
+             "ssn_mg_levels_ksp_max_it": "1"},
 }
 
 

@@ -1,4 +1,6 @@
 """The run's summary: summary.json's dictionary and the Table-1-style console lines."""
+import resource
+
 import petsc4py
 from petsc4py import PETSc
 
@@ -29,6 +31,7 @@ def summary(problem, time_total):
         "solver_mode": getattr(problem, "solver_mode", "faithful"),
         "partitioner": problem.partitioner,
         "dofs": problem.n_dofs,
+        "nonzeros": int(problem.A.getInfo()["nz_used"]),
         "contact_nodes": problem.cs.n_paper if problem.cs is not None else 0,
         "contact_nodes_active": problem.cs.size if problem.cs is not None else 0,
         "friction": problem.scene.get("contact", {}).get("friction", 0.0),
@@ -43,6 +46,9 @@ def summary(problem, time_total):
         "max_displacement": res.max_displacement(mpicomm, problem.x),
         "residuals": res.residuals(problem),
         "converged": bool(problem.converged),
+        # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
+        "peak_rss_mib": mpicomm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                                          / 1024.0),
     }
 
 
