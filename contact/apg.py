@@ -72,6 +72,7 @@ class APG(Loop):
     """FISTA on the displacement; options prefix ``-apg_``."""
 
     prefix = "apg_"
+    name = "apg"
     title = "APG"
     indent = 4
     hint = "raise -apg_max_it, or loosen -apg_rtol"
@@ -282,7 +283,7 @@ class APG(Loop):
         cs = self.cs
         if not cs.size:
             return 0.0
-        delta, E, P, Q, C, _ = self._contact_work()
+        delta, E, P, Q, C = self._contact_work()[:5]
         cs.gather(dd, delta, 2)
         delta.scale(-self.r)
         self._penalty_change(S, delta, E, P, Q)
@@ -306,7 +307,7 @@ class APG(Loop):
         cs = self.cs
         if not cs.size:
             return dq
-        delta, E, P, Q, C, T = self._contact_work()
+        delta, E, P, Q, C, T = self._contact_work()[:6]
         cs.gather(d, delta, 2)
         delta.scale(-self.r)                               # S_new - S_old
         self._penalty_change(S_old, delta, E, P, Q)        # E = S_new^+ - S_old^+
@@ -434,12 +435,11 @@ class APG(Loop):
             self.L_local = L_glob / self.backtrack_shrink
         fun = self.restart == "function"
         grad_restart = self.restart == "gradient"
-        if fun:
-            if cs.size:
-                cs.gather(x, S_old, 2)
-                S_old.aypx(-self.r, l)                     # l - r x3
-                if use_prox:
-                    cs.tangential_norm(x, self.t1, self.t2, nrm_old)
+        if fun and cs.size:
+            cs.gather(x, S_old, 2)
+            S_old.aypx(-self.r, l)                         # l - r x3
+            if use_prox:
+                cs.tangential_norm(x, self.t1, self.t2, nrm_old)
         xnew, d, y, grad = self.xnew, self.d, self.y, self.grad
         d.set(0.0)
         _EV_ITER.begin()
