@@ -16,12 +16,14 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 
-.PHONY: install run run2 test test1 test2 clean help
+.PHONY: install run run2 test test1 test2 bench report clean help
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
 	@echo "make test                       install if needed, run the suite on 1 and 2 ranks"
 	@echo "make install                    Debian packages + .venv (idempotent)"
+	@echo "make bench                      speed benchmarks -> runs/results/bench.md"
+	@echo "make report                     error against run time -> runs/results/report.md"
 
 install: $(STAMP)
 
@@ -61,6 +63,12 @@ test1: install
 
 test2: install
 	$(MPIRUN) $(PY) -m mpi4py -m pytest -q -p no:cacheprovider tests
+
+bench: install
+	$(PY) runs/bench.py $(BENCH_ARGS)
+
+report: install
+	$(PY) runs/report.py $(REPORT_ARGS)
 
 clean:
 	rm -rf runs/out .pytest_cache

@@ -20,11 +20,20 @@ Scene and problem:
   -uzawa_r R             parameter r of the modified Lagrangian
   -scene_<path> VALUE    any other scalar of the scene, e.g. -scene_boundary_top_traction_2 -40
   -output_dir DIR        results (default runs/out/<scene>-nd<N>/)
-Loops (prefix P = fp_, uzawa_, apg_):
+Loops (prefix P = fp_, uzawa_, apg_, ssn_):
   -P_rtol TOL  -P_max_it N  -P_monitor  -P_monitor_stride N  -P_converged_reason
   -P_error_if_not_converged false      go on (and report converged: false) at the limit
-  -fp_warm_start         start each Uzawa run from the previous (x, l)
-  -apg_lipschitz_its N  -apg_lipschitz_margin M   power iteration for L >= lambda_max(A)
+Solver variants (the default is the paper's algorithm, "faithful"):
+  -solver_mode fast      preset: SSN inner solver, warm starts, inexact loops (options win)
+  -uzawa_inner apg|ssn   inner solver: FISTA (paper) or semismooth Newton (KSP prefix -ssn_)
+  -fp_warm_start none|x|xl   start each Uzawa run from the previous x (and l)
+  -uzawa_warm_start BOOL     start each inner solve from the last u (default true)
+  -uzawa_inexact ETA  -fp_inexact ETA   inner tolerance tied to the outer change
+  -c2f_levels N          coarse-to-fine start from Nd/2, Nd/4, ... (box meshes)
+  -apg_metric scalar|diagonal   -apg_restart none|gradient|function
+  -apg_step fixed|backtracking  -apg_lipschitz_its N  -apg_lipschitz_margin M
+  -ssn_rtol  -ssn_max_it  -ssn_linesearch BOOL  -ssn_pc_reuse BOOL  -ssn_pc_lag N
+  -ssn_ksp_type, -ssn_pc_type, ...   e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 Linear solves (no contact part): -elastic_ksp_type, -elastic_pc_type, ...
 Mesh distribution: -petscpartitioner_type (default: ParMETIS if PETSc has it, else METIS)
 Other: -dm_vec_type, -dm_mat_type (e.g. cuda / aijcusparse), -log_view, -debug
