@@ -26,7 +26,7 @@ class FixedPoint(Loop):
     def __init__(self, uzawa, rtol=1e-6, max_it=100):
         super().__init__(uzawa.comm, rtol, max_it)
         self.uzawa = uzawa
-        cs = uzawa.apg.cs
+        cs = uzawa.inner.cs
         self.g = cs.vec()          # g^t, the slip bound used in the last solve
         self.g_new = cs.vec()
         self.warm_start = "none"
@@ -41,9 +41,7 @@ class FixedPoint(Loop):
         if ws not in ("none", "x", "xl"):
             raise ValueError(f"-fp_warm_start must be none, x or xl, got {ws!r}")
         self.warm_start = ws
-        self.inexact = o.getReal("inexact", self.inexact)
-        if not 0.0 <= self.inexact < 1.0:
-            raise ValueError(f"-fp_inexact must be in [0, 1), got {self.inexact}")
+        self.inexact = self.read_inexact(o)
 
     def solve(self, x, l, g0=None):
         """Fixed point g = l(g) from g^0 = g0 (default 0); x, l are overwritten with u and

@@ -92,6 +92,13 @@ class Loop:
             return DIVERGED_MAX_IT
         return None
 
+    def read_inexact(self, options):
+        """-P_inexact ETA in [0, 1): the tolerance factor of the next inner loop."""
+        eta = options.getReal("inexact", self.inexact)
+        if not 0.0 <= eta < 1.0:
+            raise ValueError(f"-{self.prefix}inexact must be in [0, 1), got {eta}")
+        return eta
+
     def current_rtol(self):
         """rtol, or the looser tolerance an outer loop set for this call (inexact mode)."""
         return self.rtol if self.loose_rtol is None else max(self.rtol, self.loose_rtol)

@@ -275,6 +275,3 @@ class SemismoothNewton(Loop):
             return True
         same = all(np.array_equal(a, b) for a, b in zip(self._sets, self._pc_sets))
         return bool(self.comm.tompi4py().allreduce(same, op=MPI.LAND))
-
-    def lipschitz(self):
-        return None

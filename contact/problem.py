@@ -36,6 +36,7 @@ class ContactProblem:
     def __init__(self, scene, comm=None, c2f_levels=None):
         self.c2f_levels = c2f_levels      # None: from -c2f_levels (or the scene)
         self.coarse_runs = []
+        self.solver_mode = "faithful"     # -solver_mode (read when the loops are built)
         t0 = time.perf_counter()
         self.scene = scene
         self.comm = comm or PETSc.COMM_WORLD
@@ -228,7 +229,7 @@ class ContactProblem:
         apg = self.apg is not None
         return {"fixed_point": fp, "uzawa_total": uz,
                 "uzawa_mean": uz / max(self.uzawa.calls, 1),
-                "inner": getattr(inn, "name", "apg"), "inner_first": inn.first_iterations or 0,
+                "inner": inn.name, "inner_first": inn.first_iterations or 0,
                 "inner_total": inn.total_iterations,
                 "apg_first": (inn.first_iterations or 0) if apg else 0,
                 "apg_total": inn.total_iterations if apg else 0,

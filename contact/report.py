@@ -28,7 +28,7 @@ def summary(problem, time_total):
         "petsc_version": "%d.%d.%d" % PETSc.Sys.getVersion(),
         "petsc4py_version": petsc4py.__version__,
         "mode": problem.mode,
-        "solver_mode": getattr(problem, "solver_mode", "faithful"),
+        "solver_mode": problem.solver_mode,
         "partitioner": problem.partitioner,
         "dofs": problem.n_dofs,
         "nonzeros": int(problem.A.getInfo()["nz_used"]),

@@ -39,17 +39,11 @@ class Uzawa(Loop):
         self.lam = cs.vec()
         self.l_new, self.un = cs.vec(), cs.vec()
 
-    @property
-    def apg(self):          # the inner solver (kept for code that predates -uzawa_inner)
-        return self.inner
-
     def set_from_options(self):
         super().set_from_options()
         o = PETSc.Options(self.prefix)
         self.warm_start = o.getBool("warm_start", self.warm_start)
-        self.inexact = o.getReal("inexact", self.inexact)
-        if not 0.0 <= self.inexact < 1.0:
-            raise ValueError(f"-uzawa_inexact must be in [0, 1), got {self.inexact}")
+        self.inexact = self.read_inexact(o)
 
     def solve(self, x, l, g=None):
         """Saddle point for slip bound F g: x (start, then u) and l (start, then l) in place."""
