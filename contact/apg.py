@@ -72,6 +72,8 @@ class APG(Loop):
     """FISTA on the displacement; options prefix ``-apg_``."""
 
     prefix = "apg_"
+    options = ("lipschitz_its", "lipschitz_margin", "metric", "restart", "step",
+               "backtrack_shrink", "backtrack_factor", "backtrack_decrease")
     name = "apg"
     title = "APG"
     indent = 4

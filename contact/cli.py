@@ -1,12 +1,13 @@
 """Command line: python -m contact [options]; see USAGE."""
 import os
+import signal
 import sys
 import time
 
 from petsc4py import PETSc
 
-from . import output, report, scene as scenes
-from .loop import ConvergenceError
+from . import options, output, report, scene as scenes
+from .loop import ConvergenceError, ResidualCheckError
 from .mesh import MeshError
 from .problem import ContactProblem
 
@@ -51,6 +52,7 @@ def run(comm=None):
     t0 = time.perf_counter()
     opts = PETSc.Options()
     sc = scenes.from_options(opts)
+    options.check(opts, sc)
     outdir = opts.getString("output_dir",
                             os.path.join("runs", "out", f"{sc['name']}-nd{sc['mesh']['nd']}"))
     output.prepare_dir(comm.tompi4py(), outdir)
@@ -61,11 +63,17 @@ def run(comm=None):
     output.write_results(problem, outdir, s)
     stage.pop()
     report.print_summary(comm, s, outdir)
+    options.warn_unused(comm)
     return s
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def main(argv=None):
     comm = PETSc.COMM_WORLD
+    signal.signal(signal.SIGTERM, _interrupt)      # mpirun forwards Ctrl-C as SIGTERM
     opts = PETSc.Options()
     if opts.hasName("help"):
         if comm.getRank() == 0:
@@ -74,10 +82,17 @@ def main(argv=None):
     debug = opts.getBool("debug", False)
     try:
         run(comm)
-    except (scenes.SceneError, MeshError, ConvergenceError, OSError, ValueError) as e:
+    except (scenes.SceneError, MeshError, ConvergenceError, ResidualCheckError, OSError,
+            ValueError) as e:
         if debug:
             raise
         _error(comm, str(e))
         comm.tompi4py().Barrier()     # leave together: mpirun kills the rest at the first exit
         return 1
+    except KeyboardInterrupt as e:
+        if debug:
+            raise
+        _error(comm, f"interrupted ({e.args[0] if e.args else 'SIGINT'}); no results "
+                     "written")
+        return 130
     return 0

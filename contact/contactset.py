@@ -27,8 +27,13 @@ def friction_values(spec, xyz):
     names = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "where": np.where,
              "abs": np.abs, "sqrt": np.sqrt, "minimum": np.minimum, "maximum": np.maximum,
              "pi": np.pi, "sin": np.sin, "cos": np.cos, "exp": np.exp}
-    vals = eval(str(spec), {"__builtins__": {}}, names)          # scene files are trusted input
-    return np.broadcast_to(np.asarray(vals, dtype=float), (xyz.shape[0],)).copy()
+    try:
+        with np.errstate(all="ignore"):                    # inf/nan are reported below
+            vals = eval(str(spec), {"__builtins__": {}}, names)   # scene files are trusted
+        return np.broadcast_to(np.asarray(vals, dtype=float), (xyz.shape[0],)).copy()
+    except Exception as e:                                 # any error of the user's expression
+        raise ValueError(f"friction expression {spec!r} cannot be evaluated: "
+                         f"{type(e).__name__}: {e}") from None
 
 
 class ContactSet:
@@ -65,9 +70,16 @@ class ContactSet:
         self.template = self.create_vec(comm, template)
         self.size = self.template.getSize()
         self.w = self.vec(owned[nodes, 2])
-        F = friction_values(friction, owned_xyz[nodes])
-        if np.any(~np.isfinite(F)) or np.any(F < 0.0):
-            raise ValueError("friction coefficient must be finite and >= 0 on the contact face")
+        try:
+            F = friction_values(friction, owned_xyz[nodes])
+            err = None
+        except ValueError as e:
+            err, F = str(e), None
+        if F is not None and (np.any(~np.isfinite(F)) or np.any(F < 0.0)):
+            err = f"friction {friction!r} must be finite and >= 0 on the contact face"
+        errs = [e for e in comm.tompi4py().allgather(err) if e]      # every rank raises
+        if errs:
+            raise ValueError(errs[0])
         self.F = self.vec(F)
         self.has_friction = self.F.norm(PETSc.NormType.INFINITY) > 0.0
         self.zero = self.vec(0.0)

@@ -6,6 +6,7 @@ Element matrices use 2x2x2 Gauss points and are computed for all cells at once (
 einsum over chunks of cells); face integrals use 2x2 Gauss points on the bilinear face.
 """
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .mesh import HEX_REF, MeshError
@@ -168,6 +169,72 @@ def dirichlet_rows(dm, nv, constraints):
     rows = rstart + np.flatnonzero(g.getArray(readonly=True) > 0.0)
     g.destroy()
     return rows.astype(PETSc.IntType)
+
+
+RIGID_MODES = ("translation x", "translation y", "translation z",
+               "rotation about x", "rotation about y", "rotation about z")
+
+
+def _rigid_frame(comm, xyz):
+    """Centre x0 and size h of the body, for rigid modes of unit scale."""
+    n = comm.allreduce(xyz.shape[0])
+    x0 = comm.allreduce(xyz.sum(axis=0)) / max(n, 1)
+    lo = comm.allreduce(xyz.min(axis=0) if xyz.size else np.full(3, np.inf), op=MPI.MIN)
+    hi = comm.allreduce(xyz.max(axis=0) if xyz.size else np.full(3, -np.inf), op=MPI.MAX)
+    return x0, max(float(np.max(hi - lo)), 1e-300)
+
+
+def rigid_modes(xyz, x0, h):
+    """(n, 3, 6): the six rigid motions e_k and e_k x (X - x0) / h at the points xyz."""
+    d = (xyz - x0) / h
+    M = np.zeros((xyz.shape[0], 3, 6))
+    M[:, :, :3] = np.eye(3)
+    M[:, :, 3:] = np.stack([np.cross(np.eye(3)[k], d) for k in range(3)], axis=2)
+    return M
+
+
+def free_rigid_modes(coordinates, rows, normal_points=None):
+    """Rigid-body motions not fixed by the dofs `rows` (global, owned) and, if given, by
+    the normal (z) displacement at `normal_points` (owned contact nodes, (m, 3)).
+
+    Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
+    6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
+    Q, frame): the free modes named by their largest components, Q (6, k) a basis of them,
+    and (x0, h) of `rigid_modes`.
+    """
+    comm = coordinates.getComm().tompi4py()
+    xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
+    x0, h = _rigid_frame(comm, xyz)
+    loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
+    R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
+    if normal_points is not None:
+        R = np.vstack([R, rigid_modes(normal_points, x0, h)[:, 2, :]])
+    lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
+    Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
+    names = set()
+    for q in np.abs(Q.T):
+        names |= {RIGID_MODES[j] for j in np.flatnonzero(q > 0.5 * q.max())}
+    return sorted(names, key=RIGID_MODES.index), Q, (x0, h)
+
+
+def load_lifts_off(coordinates, b, Q, frame, contact_points):
+    """True when the only rigid motion the dirichlet parts leave free (Q of one column,
+    held by the contact alone) can move the body away from the foundation (u_z >= 0 at
+    every contact node) and the load b does positive work on it: no equilibrium."""
+    if Q.shape[1] != 1:
+        return False            # several free motions: an LP we do not attempt
+    comm = coordinates.getComm().tompi4py()
+    xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
+    uz = rigid_modes(contact_points, *frame)[:, 2, :] @ Q[:, 0]
+    lo = comm.allreduce(uz.min(initial=np.inf), op=MPI.MIN)
+    hi = comm.allreduce(uz.max(initial=-np.inf), op=MPI.MAX)
+    scale = max(abs(lo), abs(hi), 1e-300)
+    if lo < -1e-9 * scale and hi > 1e-9 * scale:
+        return False            # the motion presses part of the face: contact holds it
+    sign = 1.0 if hi > 1e-9 * scale else -1.0      # orientation that lifts the body
+    m = rigid_modes(xyz, *frame) @ (sign * Q[:, 0])
+    work = comm.allreduce(float(np.sum(b.getArray(readonly=True).reshape(-1, 3) * m)))
+    return work > 0.0
 
 
 def eliminate_dirichlet(A, b, rows):

@@ -26,6 +26,10 @@ class ConvergenceError(RuntimeError):
         super().__init__(msg)
 
 
+class ResidualCheckError(RuntimeError):
+    """The loops stopped but the answer fails the a-posteriori residual check."""
+
+
 CONVERGED_RTOL = "CONVERGED_RTOL"
 CONVERGED_ZERO = "CONVERGED_ZERO"          # iterate and its change are exactly zero
 DIVERGED_MAX_IT = "DIVERGED_MAX_IT"
@@ -38,6 +42,10 @@ class Loop:
     prefix = ""
     title = ""
     hint = ""
+    #: options every loop reads under its prefix; subclasses list theirs in `options`
+    common_options = ("rtol", "max_it", "monitor", "monitor_stride", "converged_reason",
+                      "error_if_not_converged")
+    options = ()
 
     def __init__(self, comm, rtol, max_it):
         self.comm = comm
@@ -103,7 +111,7 @@ class Loop:
         """rtol, or the looser tolerance an outer loop set for this call (inexact mode)."""
         return self.rtol if self.loose_rtol is None else max(self.rtol, self.loose_rtol)
 
-    def finish(self, it, reason):
+    def finish(self, it, reason, hint=None):
         self.iterations = it
         self.total_iterations += it
         self.calls += 1
@@ -117,7 +125,7 @@ class Loop:
             self.converged = False
             if reason == DIVERGED_NANORINF or self.error_if_not_converged:
                 raise ConvergenceError(self.title, it, self.residual, reason,
-                                       "" if reason == DIVERGED_NANORINF else self.hint)
+                                       "" if reason == DIVERGED_NANORINF else (hint or self.hint))
             self.log(f"WARNING: {self.title} stopped by {reason} at iteration {it} "
                      f"(rel. change {self.residual:.3e}); continuing as asked")
         return ok

@@ -35,6 +35,53 @@ def create_box_mesh(comm, cells, lower, upper):
                                         simplex=False, interpolate=False, comm=comm)
 
 
+def read_mesh_file(comm, path):
+    """DMPlex from a mesh file PETSc reads (gmsh .msh, ExodusII, ...), on rank 0 first;
+    checks that it exists, parses, is 3D and all-hexahedral."""
+    import os
+    ok = comm.tompi4py().bcast(os.path.isfile(path) if comm.getRank() == 0 else None, root=0)
+    if not ok:
+        raise MeshError(f"mesh file {path} does not exist")
+    try:
+        dm = PETSc.DMPlex().createFromFile(path, interpolate=False, comm=comm)
+    except PETSc.Error as e:
+        lines = [ln.split("]", 1)[-1].strip() for ln in str(e).splitlines()]
+        why = next((ln for ln in reversed(lines) if ln and "()" not in ln), "unreadable")
+        raise MeshError(f"cannot read mesh file {path}: {why}") from None
+    if dm.getDimension() != 3 or dm.getCoordinateDim() != 3:
+        raise MeshError(f"mesh file {path}: need a 3D volume mesh, got dimension "
+                        f"{dm.getDimension()}")
+    cs, ce = dm.getHeightStratum(0)
+    sizes = np.array([dm.getConeSize(c) for c in range(cs, ce)], dtype=int)  # set-up only
+    bad = comm.tompi4py().allreduce(int(np.count_nonzero(sizes != 8)))
+    if bad:
+        raise MeshError(f"mesh file {path}: {bad} cells are not hexahedra (only 8-node "
+                        f"hexahedra are supported)")
+    return dm
+
+
+def check_cells(comm, conn, coords):
+    """MeshError when a cell is inverted or degenerate: det of the Jacobian of the
+    trilinear map <= 0 at one of its 8 corners (vertices out of PETSc's order, too)."""
+    X = coords[conn]                                              # (nc, 8, 3)
+    xi = HEX_REF                                                  # corners (a, 3)
+    f = 1.0 + HEX_REF[None, :, :] * xi[:, None, :]                # (a, b, 3)
+    G = np.empty((8, 8, 3))
+    for k in range(3):
+        G[:, :, k] = HEX_REF[None, :, k] * np.prod(np.delete(f, k, axis=2), axis=2) / 8.0
+    J = np.einsum("cbi,abk->caik", X, G)                          # (nc, a, 3, 3)
+    det = np.linalg.det(J) if conn.shape[0] else np.zeros((0, 8))
+    h3 = np.ptp(X, axis=1).prod(axis=1) if conn.shape[0] else np.zeros(0)
+    bad = np.flatnonzero(np.any(det <= 1e-12 * h3[:, None], axis=1))
+    mpi = comm.tompi4py()
+    count = mpi.allreduce(int(bad.size))
+    if count:
+        where = mpi.allgather(X[bad[0]].mean(axis=0) if bad.size else None)
+        c = next(w for w in where if w is not None)
+        raise MeshError(f"{count} inverted or degenerate cells (det J <= 0 at a corner), "
+                        f"the first centred at ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})")
+
+
 def _cell_dual_graph(conn):
     """CSR (xadj, adjncy) of cells sharing a face, from the (nc, 8) connectivity."""
     nc = conn.shape[0]

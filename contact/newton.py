@@ -38,6 +38,7 @@ class SemismoothNewton(Loop):
     """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``."""
 
     prefix = "ssn_"
+    options = ("linesearch", "pc_reuse", "pc_lag")     # and the KSP's: -ssn_ksp_*, -ssn_pc_*
     title = "SSN"
     indent = 4
     hint = "raise -ssn_max_it, or try -ssn_linesearch true"

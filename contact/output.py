@@ -2,8 +2,8 @@
 
 Nodes are written in a canonical order that does not depend on the partition: sorted
 lexicographically by (z, y, x) coordinates. Data are gathered to rank 0 once, after the
-solve, and each file is written to a temporary name and renamed, so a failed or
-interrupted run leaves no half-written file.
+solve; the files are written under temporary names and renamed together when all are
+complete (summary.json last), so a failed or interrupted run leaves no half-written file.
 """
 import json
 import os
@@ -69,22 +69,39 @@ def gather_contact(problem, x=None):
     return {k: v[order] for k, v in data.items()}
 
 
-def _atomic(path):
-    return path + f".tmp{os.getpid()}"
+class Staged:
+    """Write a set of files under temporary names; rename them all (summary.json last)
+    only when every one is complete, and remove the temporaries on any error or
+    interrupt: a directory never holds a half-written file or a mixed set."""
+
+    def __init__(self, *paths):
+        self.paths = paths
+        self.tmp = {p: f"{p}.tmp{os.getpid()}" for p in paths}
+
+    def __enter__(self):
+        return self.tmp
+
+    def __exit__(self, kind, value, tb):
+        if kind is None:
+            for p in self.paths:
+                os.replace(self.tmp[p], p)
+        else:
+            for t in self.tmp.values():
+                if os.path.exists(t):
+                    os.remove(t)
+        return False
 
 
 def write_hdf5(path, nodes, contact):
     import h5py
     xyz, u, cells = nodes
-    tmp = _atomic(path)
-    with h5py.File(tmp, "w") as f:
+    with h5py.File(path, "w") as f:
         f["/mesh/coordinates"] = xyz
         f["/mesh/topology"] = cells[:, PETSC_TO_VTK_HEX].astype(np.int64)
         f["/fields/displacement"] = u
         f["/fields/displacement_magnitude"] = np.linalg.norm(u, axis=1)
         for k in ("coordinates", "pressure", "slip", "status"):
             f[f"/contact/{k}"] = contact[k]
-    os.replace(tmp, path)
 
 
 def write_xdmf(path, h5name, n, nc, m):
@@ -125,15 +142,8 @@ def write_xdmf(path, h5name, n, nc, m):
 
 
 def _write_text(path, text):
-    """Write to a temporary name, then rename: never a half-written file."""
-    tmp = _atomic(path)
-    with open(tmp, "w") as f:
+    with open(path, "w") as f:
         f.write(text)
-    os.replace(tmp, path)
-
-
-def write_json(path, data):
-    _write_text(path, json.dumps(data, indent=2) + "\n")
 
 
 def prepare_dir(comm, outdir):
@@ -158,9 +168,18 @@ def write_results(problem, outdir, summary):
     comm = problem.comm.tompi4py()
     nodes = gather_nodes(problem)
     contact = gather_contact(problem)
+    err = None
     if comm.rank == 0:
-        write_hdf5(os.path.join(outdir, "solution.h5"), nodes, contact)
-        write_xdmf(os.path.join(outdir, "solution.xdmf"), "solution.h5", nodes[0].shape[0],
-                   nodes[2].shape[0], contact["pressure"].shape[0])
-        write_json(os.path.join(outdir, "summary.json"), summary)
-    comm.barrier()
+        h5, xdmf, js = (os.path.join(outdir, f) for f in
+                        ("solution.h5", "solution.xdmf", "summary.json"))
+        try:
+            with Staged(h5, xdmf, js) as tmp:
+                write_hdf5(tmp[h5], nodes, contact)
+                write_xdmf(tmp[xdmf], "solution.h5", nodes[0].shape[0], nodes[2].shape[0],
+                           contact["pressure"].shape[0])
+                _write_text(tmp[js], json.dumps(summary, indent=2) + "\n")
+        except OSError as e:
+            err = f"cannot write results to {outdir}: {e.strerror or e}"
+    err = comm.bcast(err, root=0)
+    if err:
+        raise OSError(err)

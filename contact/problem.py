@@ -12,12 +12,13 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, mesh, transfer
+from . import fem, mesh, residuals as res, transfer
 from .apg import APG
 from .contactset import ContactSet
 from .fixedpoint import FixedPoint
+from .loop import ResidualCheckError
 from .newton import SemismoothNewton
-from .scene import AXES
+from .scene import AXES, SceneError
 from .uzawa import INNER, Uzawa
 
 
@@ -52,21 +53,29 @@ class ContactProblem:
         sc, comm = self.scene, self.comm
         m = sc["mesh"]
         self.nd = int(m.get("nd", 1))
-        cells = [int(c) * self.nd for c in m.get("cells_per_nd", [1, 1, 1])]
-        self.dm = dm = mesh.create_box_mesh(comm, cells, m["lower"], m["upper"])
+        if m.get("type", "box") == "file":
+            self.dm = dm = mesh.read_mesh_file(comm, m["file"])
+        else:
+            cells = [int(c) * self.nd for c in m.get("cells_per_nd", [1, 1, 1])]
+            self.dm = dm = mesh.create_box_mesh(comm, cells, m["lower"], m["upper"])
         self.partitioner = mesh.distribute(dm)
         opts = PETSc.Options()
-        if opts.hasName("dm_vec_type"):
-            dm.setVecType(opts.getString("dm_vec_type"))
-        if opts.hasName("dm_mat_type"):
-            dm.setMatType(opts.getString("dm_mat_type"))
+        for kind, setter in (("vec_type", dm.setVecType), ("mat_type", dm.setMatType)):
+            for name in ("dm_" + kind, kind):          # -dm_vec_type or plain -vec_type
+                if opts.hasName(name):
+                    setter(opts.getString(name))
+                    break
         mesh.displacement_section(dm)
         self.conn, self.coords = conn, coords = mesh.cell_vertices(dm)
+        mesh.check_cells(comm, conn, coords)
 
         parts = {}
         for name, part in sc["boundary"].items():
             axis, value = part["plane"]
             parts[name] = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
+            if comm.tompi4py().allreduce(parts[name].shape[0]) == 0:
+                raise SceneError(f"boundary part {name!r}: no cell face lies on the plane "
+                                 f"{axis} = {value}")
         self.parts = parts
         mesh.label_parts(dm, parts)
         mat = sc["material"]
@@ -77,8 +86,8 @@ class ContactProblem:
         constraints = [(parts[n], [AXES[c] for c in p["components"]])
                        for n, p in sc["boundary"].items() if p["type"] == "dirichlet"]
         self.clamped = fem.dirichlet_rows(dm, coords.shape[0], constraints)
-        self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
         self.coordinates = fem.global_coordinates(dm, coords)
+        self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates)
         self.n_dofs = self.A.getSize()[0]
 
@@ -89,8 +98,27 @@ class ContactProblem:
                                  sc.get("contact", {}).get("friction", 0.0), self.b)
         else:
             self.cs = None
+        self._check_rigid_motion()
         self.x = self.A.createVecRight()
         self.x.set(0.0)
+
+    def _check_rigid_motion(self):
+        """SceneError when the dirichlet parts and the foundation leave a rigid-body motion
+        free, or when only the foundation holds the body and the load pulls it away."""
+        cpts = self.cs.coordinates if self.cs is not None else None
+        free, _, _ = fem.free_rigid_modes(self.coordinates, self.clamped, cpts)
+        if free:
+            held = " (the foundation holds only the normal direction)" if cpts is not None \
+                else ""
+            raise SceneError("the dirichlet parts leave rigid-body motion free ("
+                             + ", ".join(free) + f"){held}: no unique solution; clamp "
+                             "more components or parts")
+        if cpts is None:
+            return
+        free, Q, frame = fem.free_rigid_modes(self.coordinates, self.clamped)
+        if free and fem.load_lifts_off(self.coordinates, self.b, Q, frame, cpts):
+            raise SceneError("only the foundation holds the body (" + ", ".join(free) +
+                             " free otherwise) and the load pulls it away: no equilibrium")
 
     # -- solve ---------------------------------------------------------------------------
     def _coarse_start(self):
@@ -134,7 +162,27 @@ class ContactProblem:
         finally:
             stage.pop()
         self.time_solve = time.perf_counter() - t0
+        if self.mode != "linear":
+            self._check_solution()
         return self
+
+    def _check_solution(self):
+        """The loops stop on a small change of their iterate, which a vanishing step also
+        gives: check the answer itself. Raises ResidualCheckError when a residual of
+        contact/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
+        tol = PETSc.Options().getReal("check_tol", float(self.scene["solver"].get(
+            "check_tol", 1e-3)))
+        self.residuals = res.residuals(self)
+        worst = max(self.residuals, key=self.residuals.get)
+        value = self.residuals[worst]
+        if tol > 0 and not value <= tol and self.converged:
+            self.check_passed = False
+            raise ResidualCheckError(
+                f"solution check failed: the loops stopped, but the {worst} residual is "
+                f"{value:.2e} > {tol:g} (-check_tol); with r = {self.inner.r:g} the "
+                f"{self.inner.title} steps may be too short to move: try a smaller "
+                f"-uzawa_r or tighter -{self.inner.prefix}rtol / -uzawa_rtol")
+        self.check_passed = bool(value <= tol) if tol > 0 else None
 
     def _solve_linear(self):
         ksp = fem.elasticity_ksp(self.A)

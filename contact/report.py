@@ -44,7 +44,7 @@ def summary(problem, time_total):
                    "total": time_total},
         "energy": res.energy(problem),
         "max_displacement": res.max_displacement(mpicomm, problem.x),
-        "residuals": res.residuals(problem),
+        "residuals": getattr(problem, "residuals", None) or res.residuals(problem),
         "converged": bool(problem.converged),
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
         "peak_rss_mib": mpicomm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

@@ -7,7 +7,8 @@ independently of the multipliers the loops carried. At contact node j, weight w_
   g_j         = -sigma_nu,j = R_j3 / w_j          (contact pressure)
   sigma_tau,j = (R_j1, R_j2) / w_j                 (friction traction)
   u_nu,j      = -u_j3,  u_tau,j = (u_j1, u_j2)
-Relative residuals (0 for an exact discrete solution):
+Relative residuals (0 for an exact discrete solution); pressures are scaled by
+  max_j |g_j|, or by 1e-3 max_i |b_i| / max_j w_j if larger (a face carrying ~nothing):
   penetration     max_j (u_nu,j)^+ / max_nodes |u|
   complementarity max_j |g_j u_nu,j| / (max_j |g_j| * max_nodes |u|)
   coulomb         max of  max_j (|sigma_tau,j| - F_j g_j^+)^+ / max_j |g_j|   (friction cone)
@@ -21,6 +22,7 @@ final solve.
 """
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 
 def _max(comm, a, default=0.0):
@@ -88,7 +90,11 @@ def residuals(problem, x=None, slip_tol=1e-6):
     un = -u[:, 2]
     ut = np.linalg.norm(u[:, :2], axis=1)
     gmax = _max(comm, np.abs(g))
-    gden = gmax if gmax > 0 else 1.0
+    # a pressure scale for when the contact carries (almost) nothing: the largest nodal
+    # load spread over the largest contact weight, times 1e-3
+    bmax = problem.b.norm(PETSc.NormType.INFINITY)
+    p_ref = 1e-3 * bmax / max(_max(comm, w), 1e-300)
+    gden = max(gmax, p_ref) if max(gmax, p_ref) > 0 else 1.0
     uden = umax if umax > 0 else 1.0
     pen = _max(comm, np.maximum(un, 0.0)) / uden
     comp = _max(comm, np.abs(g * un)) / (gden * uden)

@@ -6,6 +6,7 @@ Any other scalar of the scene: -scene_<path with underscores>, e.g.
 -scene_boundary_top_traction_2 -40  or  -scene_mesh_upper_0 4.0.
 """
 import copy
+import difflib
 import math
 import os
 import re
@@ -29,6 +30,19 @@ DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__f
                              "runs", "paper_beam.yaml")
 
 PART_TYPES = ("dirichlet", "contact", "traction")
+
+#: the keys a scene may have, per section (anything else is a typo or unsupported)
+SCHEMA = {
+    None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
+           "solver"),
+    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file"),
+    "material": ("young", "poisson"),
+    "contact": ("friction",),
+    "solver": ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol", "ssn_rtol", "apg_max_it",
+               "uzawa_max_it", "fp_max_it", "ssn_max_it", "mode", "uzawa_inner",
+               "c2f_levels", "check_tol"),
+    "part": ("plane", "type", "traction", "components"),
+}
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -57,6 +71,9 @@ def load(path):
     if not isinstance(data, dict):
         raise SceneError(f"scene file {path} must hold a mapping")
     data.setdefault("name", os.path.splitext(os.path.basename(path))[0])
+    mesh = data.get("mesh")
+    if isinstance(mesh, dict) and isinstance(mesh.get("file"), str):   # relative to the scene
+        mesh["file"] = os.path.join(os.path.dirname(os.path.abspath(path)), mesh["file"])
     return data
 
 
@@ -75,28 +92,34 @@ def _set(d, path, value):
         d[path[-1]] = value
 
 
-def _scalars(d, prefix=()):
+def scalars(d, prefix=()):
     """(path, value) of every scalar leaf of nested dicts/lists."""
     items = d.items() if isinstance(d, dict) else enumerate(d)
     for k, v in items:
         p = prefix + (str(k),)
         if isinstance(v, (dict, list)):
-            yield from _scalars(v, p)
+            yield from scalars(v, p)
         else:
             yield p, v
 
 
-def _convert(old, text, name):
+#: scene values that may be an expression in x, y, z instead of a number
+EXPRESSIONS = (("contact", "friction"),)
+
+
+def _convert(old, text, name, path=()):
     try:
         if isinstance(old, bool):
+            if text.lower() not in ("1", "true", "yes", "on", "0", "false", "no", "off"):
+                raise ValueError(text)
             return text.lower() in ("1", "true", "yes", "on")
         if isinstance(old, int):
             return int(text)
-        if isinstance(old, float):
-            return float(text)
         try:
             return float(text)
         except ValueError:
+            if isinstance(old, float) and tuple(path) not in EXPRESSIONS:
+                raise
             return text
     except ValueError:
         raise SceneError(f"option -{name}: cannot read {text!r} as {type(old).__name__}") from None
@@ -113,58 +136,116 @@ def from_options(opts=None):
                 old = _get(scene, path)
             except (KeyError, IndexError, TypeError):
                 old = 0.0
-            _set(scene, path, _convert(old, opts.getString(opt), opt))
-    for path, old in list(_scalars(scene)):
+            _set(scene, path, _convert(old, opts.getString(opt), opt, path))
+    for path, old in list(scalars(scene)):
         name = "scene_" + "_".join(path)
         if opts.hasName(name):
-            _set(scene, path, _convert(old, opts.getString(name), name))
+            _set(scene, path, _convert(old, opts.getString(name), name, path))
     validate(scene)
     return scene
 
 
 def _positive(value, what):
-    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+            not math.isfinite(value) or value <= 0:
         raise SceneError(f"{what} must be a positive finite number, got {value!r}")
 
 
+def _check_keys(d, section, where):
+    allowed = SCHEMA[section]
+    if not isinstance(d, dict):
+        raise SceneError(f"{where} must be a mapping, got {d!r}")
+    for key in d:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else \
+                f" (allowed: {', '.join(allowed)})"
+            raise SceneError(f"unknown key '{key}' in {where}{hint}")
+
+
+def _numbers(value, n, what):
+    """A list of n finite numbers (not bool)."""
+    if not (isinstance(value, list) and len(value) == n and
+            all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                for c in value)):
+        raise SceneError(f"{what} must be a list of {n} finite numbers, got {value!r}")
+    return value
+
+
 def validate(scene):
-    """Check the values a run needs; raise SceneError naming the first bad one."""
+    """Check the keys and values a run needs; raise SceneError naming the first bad one."""
+    _check_keys(scene, None, "the scene")
+    for section in ("mesh", "material", "contact", "solver"):
+        if section in scene:
+            _check_keys(scene[section], section, f"section '{section}'")
     for key in ("mesh", "material", "boundary"):
         if key not in scene:
             raise SceneError(f"scene has no '{key}' section")
     mesh = scene["mesh"]
-    if mesh.get("type", "box") != "box":
-        raise SceneError(f"mesh type {mesh.get('type')!r} is not supported (only 'box')")
+    kind = mesh.setdefault("type", "box")
+    if kind not in ("box", "file"):
+        raise SceneError(f"mesh type {kind!r} is not supported (box or file)")
     nd = mesh.get("nd", 1)
-    if not isinstance(nd, int) or nd < 1:
+    if not isinstance(nd, int) or isinstance(nd, bool) or nd < 1:
         raise SceneError(f"nd must be an integer >= 1, got {nd!r}")
-    mat = scene["material"]
+    if kind == "file":
+        if not isinstance(mesh.get("file"), str):
+            raise SceneError("mesh.file must name a mesh file (gmsh .msh, ExodusII, ...)")
+        mesh.setdefault("nd", 1)
+    else:
+        _box(mesh)
+    _material(scene["material"])
+    _rest(scene)
+    return scene
+
+
+def _box(mesh):
+    lower = _numbers(mesh.get("lower"), 3, "mesh.lower")
+    upper = _numbers(mesh.get("upper"), 3, "mesh.upper")
+    if not all(u > lo for lo, u in zip(lower, upper)):
+        raise SceneError(f"mesh.upper must exceed mesh.lower in every direction, got "
+                         f"{lower} and {upper}")
+    cpn = mesh.setdefault("cells_per_nd", [1, 1, 1])
+    if not (isinstance(cpn, list) and len(cpn) == 3 and
+            all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cpn)):
+        raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {cpn!r}")
+
+
+def _material(mat):
     _positive(mat.get("young"), "Young's modulus (material.young)")
     nu = mat.get("poisson")
-    if not isinstance(nu, (int, float)) or not (-1.0 < nu < 0.5):
+    if not isinstance(nu, (int, float)) or isinstance(nu, bool) or not (-1.0 < nu < 0.5):
         raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got {nu!r}")
+
+
+def _rest(scene):
+    """Solver values, body force, friction and the boundary parts."""
     sol = scene.setdefault("solver", {})
     _positive(sol.setdefault("uzawa_r", 1e8), "uzawa_r")
     for k, v in (("apg_rtol", 1e-8), ("uzawa_rtol", 1e-6), ("fp_rtol", 1e-6)):
         _positive(sol.setdefault(k, v), k)
+    _numbers(scene.setdefault("body_force", [0.0, 0.0, 0.0]), 3, "body_force")
     fr = scene.setdefault("contact", {}).setdefault("friction", 0.0)
+    if isinstance(fr, bool) or not isinstance(fr, (int, float, str)):
+        raise SceneError(f"friction must be a number or an expression in x, y, z, got {fr!r}")
     if isinstance(fr, (int, float)) and (not math.isfinite(fr) or fr < 0):
-        raise SceneError(f"friction must be >= 0, got {fr!r}")
+        raise SceneError(f"friction must be a finite number >= 0, got {fr!r}")
     parts = scene["boundary"]
     if not isinstance(parts, dict) or not parts:
         raise SceneError("scene has no boundary parts")
     for name, part in parts.items():
+        _check_keys(part, "part", f"boundary part '{name}'")
         t = part.get("type")
         if t not in PART_TYPES:
             raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got {t!r}")
         plane = part.get("plane")
-        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES):
-            raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, value]")
+        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES and
+                isinstance(plane[1], (int, float)) and not isinstance(plane[1], bool) and
+                math.isfinite(plane[1])):
+            raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, finite value], "
+                             f"got {plane!r}")
         if t == "traction":
-            p = part.get("traction")
-            if not (isinstance(p, list) and len(p) == 3 and
-                    all(isinstance(c, (int, float)) and math.isfinite(c) for c in p)):
-                raise SceneError(f"boundary part {name!r}: traction must be 3 finite numbers")
+            _numbers(part.get("traction"), 3, f"boundary part {name!r}: traction")
         if t == "dirichlet":
             comps = part.setdefault("components", ["x", "y", "z"])
             if not all(c in AXES for c in comps):
@@ -172,4 +253,3 @@ def validate(scene):
     if not any(p["type"] == "dirichlet" for p in parts.values()):
         raise SceneError("scene has no dirichlet (clamped) part: rigid-body motion is not "
                          "excluded")
-    return scene

@@ -26,6 +26,7 @@ class Uzawa(Loop):
     """Options prefix ``-uzawa_`` (and ``-uzawa_r`` for the parameter r)."""
 
     prefix = "uzawa_"
+    options = ("warm_start", "inexact", "inner", "r")
     title = "Uzawa"
     indent = 2
     hint = "raise -uzawa_max_it"
