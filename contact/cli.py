@@ -41,8 +41,19 @@ Other: -dm_vec_type, -dm_mat_type (e.g. cuda / aijcusparse), -log_view, -debug
 """
 
 
-def _error(comm, msg):
-    if comm.getRank() == 0:
+def _error(comm, msg, wait=10.0):
+    """Print `msg` once. All ranks normally fail together (rank 0 prints); a rank whose
+    error the others did not see (they wait in a collective) prints it and aborts the
+    job after `wait` seconds instead of hanging."""
+    mpi = comm.tompi4py()
+    if mpi.size > 1:
+        req, deadline = mpi.Ibarrier(), time.monotonic() + wait
+        while not req.Test():
+            if time.monotonic() > deadline:
+                print(f"contact: error: {msg}", file=sys.stderr, flush=True)
+                mpi.Abort(1)
+            time.sleep(0.01)
+    if mpi.rank == 0:
         print(f"contact: error: {msg}", file=sys.stderr, flush=True)
 
 
@@ -86,8 +97,7 @@ def main(argv=None):
             ValueError) as e:
         if debug:
             raise
-        _error(comm, str(e))
-        comm.tompi4py().Barrier()     # leave together: mpirun kills the rest at the first exit
+        _error(comm, str(e))          # leave together: mpirun kills the rest at the first exit
         return 1
     except KeyboardInterrupt as e:
         if debug:

@@ -179,8 +179,10 @@ def _rigid_frame(comm, xyz):
     """Centre x0 and size h of the body, for rigid modes of unit scale."""
     n = comm.allreduce(xyz.shape[0])
     x0 = comm.allreduce(xyz.sum(axis=0)) / max(n, 1)
-    lo = comm.allreduce(xyz.min(axis=0) if xyz.size else np.full(3, np.inf), op=MPI.MIN)
-    hi = comm.allreduce(xyz.max(axis=0) if xyz.size else np.full(3, -np.inf), op=MPI.MAX)
+    lo = xyz.min(axis=0) if xyz.size else np.full(3, np.inf)
+    hi = xyz.max(axis=0) if xyz.size else np.full(3, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
     return x0, max(float(np.max(hi - lo)), 1e-300)
 
 

@@ -125,7 +125,8 @@ class Loop:
             self.converged = False
             if reason == DIVERGED_NANORINF or self.error_if_not_converged:
                 raise ConvergenceError(self.title, it, self.residual, reason,
-                                       "" if reason == DIVERGED_NANORINF else (hint or self.hint))
+                                       "a NaN or Inf appeared in the iterate" if reason == DIVERGED_NANORINF
+                                       else (hint or self.hint))
             self.log(f"WARNING: {self.title} stopped by {reason} at iteration {it} "
                      f"(rel. change {self.residual:.3e}); continuing as asked")
         return ok

@@ -39,9 +39,17 @@ def read_mesh_file(comm, path):
     """DMPlex from a mesh file PETSc reads (gmsh .msh, ExodusII, ...), on rank 0 first;
     checks that it exists, parses, is 3D and all-hexahedral."""
     import os
-    ok = comm.tompi4py().bcast(os.path.isfile(path) if comm.getRank() == 0 else None, root=0)
-    if not ok:
-        raise MeshError(f"mesh file {path} does not exist")
+    why = None
+    if comm.getRank() == 0:                    # PETSc reads on rank 0: check there, tell all
+        if not os.path.isfile(path):
+            why = "does not exist"
+        elif path.endswith(".msh"):
+            with open(path, "rb") as f:
+                if not f.read(11).startswith(b"$MeshFormat"):
+                    why = "is not a gmsh file (no $MeshFormat header)"
+    why = comm.tompi4py().bcast(why, root=0)
+    if why:
+        raise MeshError(f"mesh file {path} {why}")
     try:
         dm = PETSc.DMPlex().createFromFile(path, interpolate=False, comm=comm)
     except PETSc.Error as e:

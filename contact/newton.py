@@ -264,8 +264,18 @@ class SemismoothNewton(Loop):
         _EV_ITER.end()
         if self.first_iterations is None:
             self.first_iterations = it
-        self.finish(it, reason)
+        self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
+
+    def _ksp_hint(self):
+        """Why the linear solve failed, in PETSc's words, and what to try."""
+        code = self.ksp.getConvergedReason()
+        name = next((k for k, v in vars(PETSc.KSP.ConvergedReason).items()
+                     if v == code and not k.startswith("_")), str(code))
+        if "NANORINF" in name:
+            return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
+        return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
+                f"-ssn_ksp_type preonly -ssn_pc_type cholesky, or raise -ssn_ksp_max_it")
 
     def _same_sets(self):
         """True when -ssn_pc_reuse and the active, stick and slip sets are those the

@@ -135,7 +135,7 @@ def from_options(opts=None):
             try:
                 old = _get(scene, path)
             except (KeyError, IndexError, TypeError):
-                old = 0.0
+                old = 1 if opt == "nd" else 0.0
             _set(scene, path, _convert(old, opts.getString(opt), opt, path))
     for path, old in list(scalars(scene)):
         name = "scene_" + "_".join(path)

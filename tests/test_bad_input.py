@@ -1,0 +1,250 @@
+"""Bad input end to end: one line on stderr (once, also under mpirun), a non-zero exit, no
+traceback without -debug, no hang, and no file left in the output directory."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+from conftest import PAPER, ROOT, skip_in_parallel
+
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+ENV.pop("OMPI_COMM_WORLD_SIZE", None)
+
+
+def write_box_msh(path, n=2, invert=None, tet=None):
+    """gmsh 2.2 ASCII file of the unit cube in n^3 hexahedra; optionally one cell turned
+    inside out (top and bottom faces swapped) or written as a tetrahedron."""
+    g = np.linspace(0.0, 1.0, n + 1)
+    Z, Y, X = np.meshgrid(g, g, g, indexing="ij")
+    pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    i, j, k = (a.ravel() for a in np.meshgrid(*[np.arange(n)] * 3, indexing="ij"))
+    v = lambda di, dj, dk: ((k + dk) * (n + 1) + j + dj) * (n + 1) + i + di   # noqa: E731
+    cells = np.stack([v(0, 0, 0), v(1, 0, 0), v(1, 1, 0), v(0, 1, 0),
+                      v(0, 0, 1), v(1, 0, 1), v(1, 1, 1), v(0, 1, 1)], axis=1)
+    if invert is not None:
+        cells[invert] = np.r_[cells[invert, 4:], cells[invert, :4]]
+    lines = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$Nodes", str(len(pts))]
+    lines += [f"{a + 1} {x!r} {y!r} {z!r}" for a, (x, y, z) in enumerate(pts)]
+    lines += ["$EndNodes", "$Elements", str(len(cells))]
+    for e, c in enumerate(cells + 1):
+        kind, c = (4, c[:4]) if e == tet else (5, c)
+        lines.append(f"{e + 1} {kind} 2 1 1 " + " ".join(map(str, c)))
+    lines.append("$EndElements")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+BLOCK = {"name": "block", "mesh": {"type": "file", "file": "block.msh"},
+         "material": {"young": 1000.0, "poisson": 0.3},
+         "boundary": {"clamped": {"plane": ["x", 0.0], "type": "dirichlet"},
+                      "contact": {"plane": ["z", 0.0], "type": "contact"},
+                      "top": {"plane": ["z", 1.0], "type": "traction",
+                              "traction": [0.5, 0.0, -2.0]}},
+         "contact": {"friction": 0.3}, "solver": {"uzawa_r": 1.0e4}}
+
+
+def scene_file(tmp_path, edit=None, mesh=None):
+    """The paper's scene (or the file-mesh block when `mesh` names a .msh) with `edit`."""
+    if mesh is None:
+        with open(PAPER) as f:
+            sc = yaml.safe_load(f.read().replace("21.19e4", "211900.0").replace(
+                "1.0e8", "100000000.0"))
+    else:
+        sc = yaml.safe_load(yaml.safe_dump(BLOCK))
+        sc["mesh"]["file"] = mesh
+    if edit:
+        edit(sc)
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(sc))
+    return str(path)
+
+
+def _cli(args, ranks=1, timeout=120):
+    cmd = [sys.executable, "-m", "contact"] + args
+    if ranks > 1:
+        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
+    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _msh(tmp_path, **kw):
+    path = tmp_path / "block.msh"
+    write_box_msh(str(path), **kw)
+    return str(path)
+
+
+def _del(*keys):
+    def edit(sc):
+        d = sc
+        for k in keys[:-1]:
+            d = d[k]
+        del d[keys[-1]]
+    return edit
+
+
+def _set(value, *keys):
+    def edit(sc):
+        d = sc
+        for k in keys[:-1]:
+            d = d[k]
+        d[keys[-1]] = value
+    return edit
+
+
+def _rename(old, new, *keys):
+    def edit(sc):
+        d = sc
+        for k in keys:
+            d = d[k]
+        d[new] = d.pop(old)
+    return edit
+
+
+# (id, how to build the arguments from tmp_path, text the error line must contain)
+CASES = [
+    ("unknown-option", lambda t: ["-apg_rtoll", "1e-3"], "did you mean -apg_rtol?"),
+    ("misspelled-option", lambda t: ["-frction", "0.2"], "did you mean -friction?"),
+    ("unknown-scene-option", lambda t: ["-scene_contact_gap", "1"], "unknown option"),
+    ("misspelled-key", lambda t: ["-scene", scene_file(t, _rename("material", "materail"))],
+     "unknown key 'materail'"),
+    ("unknown-part-key", lambda t: ["-scene", scene_file(
+        t, _set(1.0, "boundary", "top", "pressure"))], "unknown key 'pressure'"),
+    ("wrong-type-option", lambda t: ["-nd", "2.5"], "cannot read '2.5' as int"),
+    ("wrong-type-scene", lambda t: ["-scene", scene_file(t, _set("abc", "material",
+                                                                  "young"))],
+     "Young's modulus"),
+    ("wrong-type-traction", lambda t: ["-scene", scene_file(
+        t, _set([1.0, 2.0], "boundary", "top", "traction"))], "traction must be a list of 3"),
+    ("young-zero", lambda t: ["-young", "0"], "Young's modulus"),
+    ("young-negative", lambda t: ["-young", "-5"], "Young's modulus"),
+    ("poisson-half", lambda t: ["-poisson", "0.5"], "Poisson ratio"),
+    ("poisson-minus-one", lambda t: ["-poisson", "-1"], "Poisson ratio"),
+    ("friction-negative", lambda t: ["-friction", "-0.1"], "friction must be"),
+    ("r-zero", lambda t: ["-uzawa_r", "0"], "uzawa_r must be"),
+    ("r-negative", lambda t: ["-uzawa_r", "-1e8"], "uzawa_r must be"),
+    ("nd-zero", lambda t: ["-nd", "0"], "nd must be"),
+    ("nan-young", lambda t: ["-young", "nan"], "Young's modulus"),
+    ("inf-r", lambda t: ["-uzawa_r", "inf"], "uzawa_r must be"),
+    ("nan-traction", lambda t: ["-scene_boundary_top_traction_2", "nan"], "finite numbers"),
+    ("inf-body-force", lambda t: ["-scene", scene_file(
+        t, _set([0.0, 0.0, float("inf")], "body_force"))], "body_force"),
+    ("friction-expression-inf", lambda t: ["-friction", "x/0"], "must be finite"),
+    ("friction-expression-syntax", lambda t: ["-friction", "x+"], "cannot be evaluated"),
+    ("no-clamped-part", lambda t: ["-scene", scene_file(t, _del("boundary", "clamped"))],
+     "no dirichlet"),
+    ("rigid-motion-free", lambda t: ["-scene", scene_file(
+        t, _set(["z"], "boundary", "clamped", "components"))], "rigid-body motion free"),
+    ("missing-part", lambda t: ["-scene", scene_file(
+        t, _set(["x", 5.0], "boundary", "end", "plane"))], "no cell face lies on the plane"),
+    ("no-boundary-section", lambda t: ["-scene", scene_file(t, _del("boundary"))],
+     "no 'boundary' section"),
+    ("mesh-missing", lambda t: ["-scene", scene_file(t, mesh=str(t / "none.msh"))],
+     "does not exist"),
+    ("mesh-not-a-mesh", lambda t: ["-scene", scene_file(
+        t, mesh=(t.joinpath("junk.msh").write_text("hello\n"), str(t / "junk.msh"))[1])],
+     "is not a gmsh file"),
+    ("mesh-tetrahedron", lambda t: ["-scene", scene_file(t, mesh=_msh(t, tet=3))],
+     "not hexahedra"),
+    ("mesh-inverted", lambda t: ["-scene", scene_file(t, mesh=_msh(t, invert=5))],
+     "inverted"),
+    ("output-unwritable", lambda t: ["-output_dir", (t.joinpath("file").write_text(""),
+                                                      str(t / "file" / "sub"))[1]],
+     "cannot write to output directory"),
+    ("solution-check", lambda t: ["-uzawa_r", "1e300"], "solution check failed"),
+]
+
+
+def _check(p, msg, outdir):
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode != 0, p.stdout[-2000:]
+    assert len(lines) == 1 and lines[0].startswith("contact: error:"), p.stderr
+    assert msg in lines[0], lines[0]
+    assert not os.path.isdir(outdir) or not os.listdir(outdir)
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("case,args,msg", CASES, ids=[c[0] for c in CASES])
+def test_bad_input_one_line(tmp_path, case, args, msg):
+    out = str(tmp_path / "out")
+    argv = args(tmp_path)
+    if "-output_dir" not in argv:
+        argv += ["-output_dir", out]
+    _check(_cli(["-nd", "1"] + argv), msg, out)
+
+
+TWO_RANKS = ("unknown-option", "young-negative", "friction-expression-inf", "rigid-motion-free",
+             "missing-part", "mesh-inverted", "mesh-not-a-mesh", "output-unwritable",
+             "solution-check")
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("case", TWO_RANKS)
+def test_bad_input_two_ranks_one_line_no_hang(tmp_path, case):
+    """Under mpirun -n 2: printed once (rank 0), non-zero exit, no hang (timeout)."""
+    args, msg = next((a, m) for c, a, m in CASES if c == case)
+    out = str(tmp_path / "out")
+    argv = args(tmp_path)
+    if "-output_dir" not in argv:
+        argv += ["-output_dir", out]
+    _check(_cli(["-nd", "2"] + argv, ranks=2), msg, out)
+
+
+@skip_in_parallel
+def test_debug_shows_the_traceback(tmp_path):
+    p = _cli(["-young", "-5", "-debug", "-output_dir", str(tmp_path)])
+    assert p.returncode != 0 and "Traceback" in p.stderr and "SceneError" in p.stderr
+
+
+@skip_in_parallel
+def test_file_mesh_solves_like_the_box(tmp_path):
+    """A gmsh file of the unit cube gives the answer of the same box mesh."""
+    outs = []
+    for mesh in (_msh(tmp_path), None):
+        edit = None if mesh else _set({"type": "box", "lower": [0.0, 0.0, 0.0],
+                                       "upper": [1.0, 1.0, 1.0], "cells_per_nd": [1, 1, 1],
+                                       "nd": 2}, "mesh")
+        out = str(tmp_path / ("file" if mesh else "box"))
+        sc = scene_file(tmp_path, edit, mesh=mesh or _msh(tmp_path))
+        p = _cli(["-scene", sc, "-output_dir", out, "-apg_rtol", "1e-12",
+                  "-uzawa_rtol", "1e-10", "-fp_rtol", "1e-10"])
+        assert p.returncode == 0, p.stderr
+        import h5py
+        with h5py.File(os.path.join(out, "solution.h5")) as f:
+            outs.append(f["/fields/displacement"][()])
+    assert np.abs(outs[0] - outs[1]).max() <= 1e-9 * np.abs(outs[1]).max()
+
+
+def _interrupt(tmp_path, sig, ranks=1, after=4.0):
+    out = str(tmp_path / "out")
+    cmd = [sys.executable, "-m", "contact", "-nd", "8", "-output_dir", out]
+    if ranks > 1:
+        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
+    p = subprocess.Popen(cmd, cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(after)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=60)                 # no hang
+    return p.returncode, err, out
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupt_leaves_no_output(tmp_path, sig):
+    rc, err, out = _interrupt(tmp_path, sig)
+    assert rc == 130, err
+    assert err.strip().splitlines() == [f"contact: error: interrupted ({sig.name}); no "
+                                        "results written"]
+    assert not os.listdir(out)                         # nothing, not even a temporary
+
+
+@skip_in_parallel
+def test_interrupt_under_mpirun_leaves_no_output(tmp_path):
+    rc, err, out = _interrupt(tmp_path, signal.SIGINT, ranks=2, after=6.0)
+    assert rc != 0
+    assert "Traceback" not in err
+    assert not os.path.isdir(out) or not os.listdir(out)
