@@ -24,6 +24,9 @@ Scene and problem:
 Loops (prefix P = fp_, uzawa_, apg_, ssn_):
   -P_rtol TOL  -P_max_it N  -P_monitor  -P_monitor_stride N  -P_converged_reason
   -P_error_if_not_converged false      go on (and report converged: false) at the limit
+  -fp_relaxation W       g <- (1-W) g + W l  (W in (0,1], default 1)
+  -fp_detect_cycles BOOL stop early on an oscillating/stagnating fixed point (default true)
+  -check_tol T           fail if a residual of the answer exceeds T (default 1e-3; 0 = off)
 Solver variants (the default is the paper's algorithm, "faithful"):
   -solver_mode fast      preset: SSN inner solver, warm starts, inexact loops (options win)
   -uzawa_inner apg|ssn   inner solver: FISTA (paper) or semismooth Newton (KSP prefix -ssn_)
@@ -37,7 +40,8 @@ Solver variants (the default is the paper's algorithm, "faithful"):
   -ssn_ksp_type, -ssn_pc_type, ...   e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 Linear solves (no contact part): -elastic_ksp_type, -elastic_pc_type, ...
 Mesh distribution: -petscpartitioner_type (default: ParMETIS if PETSc has it, else METIS)
-Other: -dm_vec_type, -dm_mat_type (e.g. cuda / aijcusparse), -log_view, -debug
+Other: -dm_vec_type, -dm_mat_type (or -vec_type, -mat_type: e.g. cuda / aijcusparse),
+  -log_view, -debug (show the traceback of an error)
 """
 
 
