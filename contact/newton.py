@@ -24,13 +24,12 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .loop import CONVERGED_RTOL, Loop
+from .loop import DIVERGED_MAX_IT, Loop
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
 _EV_KSP = PETSc.Log.Event("SSN linear solve")
 _EV_MAT = PETSc.Log.Event("SSN assemble")
 
-DIVERGED_LINE_SEARCH = "DIVERGED_LINE_SEARCH"
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 
 
@@ -55,12 +54,16 @@ class SemismoothNewton(Loop):
         self._since_setup = 0
         self._sets = self._pc_sets = None
         self.pc_setups = 0
-        self.max_halvings = 30
+        self.min_step = 1e-4         # line search: below this, a proximal-gradient step
+        self.full_step_below = 1e-7  # relative Newton step taken without line search
+        self.fallbacks = 0           # proximal-gradient steps taken
+        self.accurate_resolves = 0   # Newton systems solved again more accurately
+        self.L_G = None
         self.first_iterations = None
         self.ksp_iterations = 0
         self.line_search_cuts = 0
         self.n_stick = self.n_slip = 0
-        v = A.createVecRight()
+        v = b.duplicate()                # the DM's Vec type, not the Mat's default
         self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt = \
             (v.duplicate() for _ in range(6))
         v.destroy()
@@ -142,7 +145,7 @@ class SemismoothNewton(Loop):
         add = PETSc.InsertMode.ADD_VALUES
         active = p >= 0.0          # closed set: from x = l = 0 every node starts active
         self.c2.setArray(np.where(active, self.r * self.w, 0.0))
-        diag = K.createVecRight()
+        diag = self.b.duplicate()
         diag.set(0.0)
         cs.scatter(self.c2, diag, 2, mode=add)
         stick_rows = np.empty(0, dtype=PETSc.IntType)
@@ -238,23 +241,33 @@ class SemismoothNewton(Loop):
                 self.residual = float("nan")
                 reason = DIVERGED_LINEAR_SOLVE
                 break
-            t, cuts = 1.0, 0
-            while True:
-                self.xt.waxpy(t, self.dx, x)
-                self.A.mult(self.xt, self.Axt)
-                theta_t = self.objective(self.xt, self.Axt, l, lam_a)
-                if not self.linesearch or theta_t <= theta + 1e-14 * abs(theta) \
-                        or cuts >= self.max_halvings:
-                    break
-                t *= 0.5
-                cuts += 1
-            self.line_search_cuts += cuts
+            t, theta_t, full = self._line_search(x, l, lam_a, theta)
+            rtol = self.ksp.getTolerances()[0]
+            if self.linesearch and not full and (t < self.min_step or theta_t > theta) \
+                    and rtol > 1e-10:
+                # an inexact Krylov solve may give no descent direction: solve it again
+                # a thousand times more accurately before giving up on Newton
+                self.ksp.setTolerances(rtol=max(1e-3 * rtol, 1e-12))
+                self.ksp.solve(rhs, self.dx)
+                self.ksp_iterations += self.ksp.getIterationNumber()
+                self.ksp.setTolerances(rtol=rtol)
+                self.accurate_resolves += 1
+                t, theta_t, full = self._line_search(x, l, lam_a, theta)
+            if self.linesearch and not full and (t < self.min_step or theta_t > theta):
+                # dx is no (good) descent direction of Theta: take the proximal-gradient
+                # step 1/L instead, which decreases Theta; its length says nothing
+                # about convergence, so the test waits for the next Newton step
+                theta_t = self._prox_gradient_step(x, grad, l, lam_a)
+                self.fallbacks += 1
+                x.swap(self.xt)
+                self.Ax.swap(self.Axt)
+                theta = theta_t
+                if it >= self.max_it:
+                    reason = DIVERGED_MAX_IT
+                self._monitor(it, self.residual, "  (proximal-gradient step: Newton step "
+                                                 f"{t:g} did not decrease Theta)")
+                continue
             change, norm = t * self.dx.norm(), self.xt.norm()
-            if cuts >= self.max_halvings and theta_t > theta + 1e-14 * abs(theta):
-                # no decrease along dx: converged to rounding, or a failed step
-                self.residual = self.dx.norm() / max(norm, 1e-300)
-                reason = DIVERGED_LINE_SEARCH if self.residual > 1e3 * self.rtol else CONVERGED_RTOL
-                break
             x.swap(self.xt)
             self.Ax.swap(self.Axt)
             theta = theta_t
@@ -266,6 +279,43 @@ class SemismoothNewton(Loop):
             self.first_iterations = it
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
+
+    def _line_search(self, x, l, lam, theta):
+        """Halve t from 1 until Theta(x + t dx) <= Theta(x) or t < min_step; xt, Axt hold
+        the last trial. Returns (t, Theta(xt), full): full = the step is below the
+        rounding of Theta (relative length < full_step_below) and is taken as it is."""
+        full = self.dx.norm() <= self.full_step_below * max(x.norm(), 1e-300)
+        t = 1.0
+        while True:
+            self.xt.waxpy(t, self.dx, x)
+            self.A.mult(self.xt, self.Axt)
+            theta_t = self.objective(self.xt, self.Axt, l, lam)
+            if not self.linesearch or full or theta_t <= theta + 1e-14 * abs(theta) \
+                    or t < self.min_step:
+                return t, theta_t, full
+            t *= 0.5
+            self.line_search_cuts += 1
+
+    def _prox_gradient_step(self, x, grad, l, lam):
+        """xt <- prox_{lam |.|/L}(x - grad / L), L = ||A||_inf + r max w >= the Lipschitz
+        constant of grad G: Theta(xt) <= Theta(x). Returns Theta(xt) (Axt set)."""
+        if self.L_G is None:
+            wmax = self.comm.tompi4py().allreduce(float(self.w.max(initial=0.0)), op=MPI.MAX)
+            self.L_G = self.A.norm(PETSc.NormType.INFINITY) + self.r * wmax
+        self.xt.waxpy(-1.0 / self.L_G, grad, x)
+        if lam is not None:
+            cs = self.cs
+            cs.gather(self.xt, self.c0, 0)
+            cs.gather(self.xt, self.c1, 1)
+            y1, y2 = cs.local_array(self.c0), cs.local_array(self.c1)
+            ny = np.hypot(y1, y2)
+            f = np.maximum(0.0, 1.0 - (lam / self.L_G) / np.maximum(ny, 1e-300))
+            self.c0.setArray(f * y1)
+            self.c1.setArray(f * y2)
+            cs.scatter(self.c0, self.xt, 0)
+            cs.scatter(self.c1, self.xt, 1)
+        self.A.mult(self.xt, self.Axt)
+        return self.objective(self.xt, self.Axt, l, lam)
 
     def _ksp_hint(self):
         """Why the linear solve failed, in PETSc's words, and what to try."""

@@ -51,6 +51,19 @@ def known(scene=None):
     return names
 
 
+#: prefixes of PETSc's own objects and options: never checked against our names
+PETSC_PREFIXES = ("ksp_", "pc_", "mg_", "mat_", "vec_", "dm_", "sub_", "snes_", "ts_",
+                  "tao_", "log_", "malloc", "options_", "info", "viewer_", "draw_",
+                  "device_", "cuda_", "kokkos_", "use_gpu", "elastic_", "petscpartitioner_",
+                  "petscsection_", "is_", "sf_", "history", "on_error", "fp_trap",
+                  "no_signal_handler")
+
+
+def _petsc(name):
+    """PETSc's option: under a PETSc prefix, or a PETSc object's under -ssn_."""
+    return name.startswith(PETSC_PREFIXES) or (name.startswith("ssn_") and not _ours(name))
+
+
 def _ours(name):
     if not name.startswith(OWN_PREFIXES):
         return False
@@ -64,7 +77,7 @@ def check(opts, scene=None):
     """Raise OptionsError naming the first unknown option of ours (with a suggestion)."""
     names = known(scene)
     for name in sorted(opts.getAll()):
-        if name in names or name in PETSC_GLOBAL:
+        if name in names or name in PETSC_GLOBAL or _petsc(name):
             continue
         close = difflib.get_close_matches(name, names | set(PETSC_GLOBAL), n=1, cutoff=0.8)
         if _ours(name) or close:

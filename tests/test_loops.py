@@ -152,7 +152,9 @@ def test_unknown_and_misspelled_options():
     from contact import options
     o = PETSc.Options()
     sc = paper_scene(nd=1)
-    o.setValue("ssn_ksp_type", "cg")                 # PETSc's: allowed
+    for petsc in ("ssn_ksp_type", "ssn_ksp_rtol", "ssn_mg_levels_ksp_max_it",
+                  "elastic_ksp_rtol", "vec_type", "log_view", "malloc_debug"):
+        o.setValue(petsc, "1")                       # PETSc's: allowed
     o.setValue("scene_boundary_top_traction_2", "1")  # a path of this scene: allowed
     options.check(o, sc)
     for bad, msg in (("apg_rtoll", "did you mean -apg_rtol?"),

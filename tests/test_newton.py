@@ -112,3 +112,18 @@ def test_coarse_to_fine_start_reaches_the_same_solution(comm):
     assert [r["nd"] for r in c2f.coarse_runs] == [1, 2]
     assert rel_err(gather(c2f)[1], gather(ref)[1]) < 1e-7
     assert rel_err(c2f.cs.local_array(c2f.l), ref.cs.local_array(ref.l)) < 1e-6
+
+
+@skip_in_parallel
+def test_ssn_recovers_where_the_inexact_newton_direction_fails():
+    """r = 1e4 in the fast preset (KSP rtol 1e-3): the inexact Newton direction stalls the
+    line search (before the safeguard: DIVERGED_MAX_IT). SSN solves that system again
+    accurately, or takes a proximal-gradient step, and reaches the conic reference."""
+    sc = paper_scene(nd=3, uzawa_r=1e4, uzawa_rtol=1e-9, fp_rtol=1e-9)
+    _set(solver_mode="fast")
+    pr = solve(sc, PETSc.COMM_SELF)
+    assert pr.inner.accurate_resolves + pr.inner.fallbacks > 0
+    d = _discrete(pr)
+    ref = solve_coulomb(F=pr.cs.local_array(pr.cs.F), tol=1e-11, **d)
+    assert rel_err(pr.x.getArray(), ref["u"]) < 1e-5
+    assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-5
