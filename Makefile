@@ -16,7 +16,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 
-.PHONY: install run run2 test test1 test2 bench report clean help
+.PHONY: install run run2 test test1 test2 bench report stability clean help
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
@@ -24,6 +24,7 @@ help:
 	@echo "make install                    Debian packages + .venv (idempotent)"
 	@echo "make bench                      speed benchmarks -> runs/results/bench.md"
 	@echo "make report                     error against run time -> runs/results/report.md"
+	@echo "make stability                  stability suite (edge cases) -> runs/results/stability.md"
 
 install: $(STAMP)
 
@@ -69,6 +70,9 @@ bench: install
 
 report: install
 	$(PY) runs/report.py $(REPORT_ARGS)
+
+stability: install
+	$(PY) runs/stability.py $(STABILITY_ARGS)
 
 clean:
 	rm -rf runs/out .pytest_cache

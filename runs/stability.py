@@ -1,0 +1,747 @@
+"""Stability suite (make stability): the paper's beam pushed to the edges of its parameters.
+
+Each row runs `python -m contact OPTIONS -output_dir runs/out/stability/<row-id>` once, to
+convergence or to a named failure (per-run timeout, default 120 s), and the results are
+recorded as markdown in runs/results/stability.md: verdict (converged / failed: <the
+error line> / timeout / skipped), fixed-point / Uzawa / inner / KSP iterations, solve
+time, max residual, max |u|, contact status counts, and a findings paragraph per group.
+
+Groups (--only GROUP runs one; the others are then reported from the cache only):
+  r         -uzawa_r from 1e2 to 1e12, faithful (APG) and fast (SSN)
+  young     E from 1 to 1e9 with the loads scaled by E / 21.19e4, r scaled or not
+  poisson   nu from 0 to 0.4999 (near-incompressible locking)
+  friction  F from 0 to 2, with -fp_relaxation 0.5 rows when the solver has that option
+  loads     lift-off, pressed flat, tangential loads up to and beyond the friction limit,
+            full stick
+  thin      plates and walls of aspect ratio 1:100
+  elements  elongated and flat hexahedra
+  fvar      F varying over the contact face (F = 0 on part of it), malformed F
+A row's run directory holds summary.json, solution.h5, stdout.txt, stderr.txt and
+result.json (verdict, error, wall time, options); a row whose result.json exists with the
+same options is reused (--force reruns). Rows that need an option the solver may not have
+(-fp_relaxation) run only if `-help` lists it or a tiny run accepts it (the solver rejects
+unknown options); otherwise they are recorded as skipped.
+"""
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OUT = os.path.join(ROOT, "runs", "out", "stability")
+RECORD = os.path.join(ROOT, "runs", "results", "stability.md")
+PY = sys.executable
+E0 = 21.19e4                                  # the paper's Young's modulus, MPa
+FAST = ["-solver_mode", "fast"]
+FAITHFUL = ["-apg_max_it", "20000"]           # the paper's APG, stopped at 20000 iterations
+FAITHFUL_R6 = FAITHFUL + ["-uzawa_r", "1e6"]  # an r the capped APG reaches at Nd = 3
+DIRECT = ["-ssn_ksp_type", "preonly", "-ssn_pc_type", "cholesky"]   # exact Newton systems
+COLD = ["-fp_warm_start", "none"]             # fast mode without the fixed-point warm start
+RESIDUAL_FLAG = 1e-5                          # a converged row above this gets a note
+
+
+@dataclass
+class Case:
+    id: str
+    desc: str
+    opts: list
+    requires: str = None                      # an option the solver may not know yet
+
+    @property
+    def mode(self):
+        return "fast" if "fast" in self.opts else "faithful"
+
+
+def num(v):
+    return f"{v:.10g}"
+
+
+def nd(n):
+    return ["-nd", str(n)]
+
+
+# -- the rows ------------------------------------------------------------------------------
+def cases_r():
+    out = [Case(f"r-faithful-{r}", f"r = {r}, APG limit 20000",
+                nd(3) + ["-uzawa_r", r] + FAITHFUL)
+           for r in ("1e2", "1e4", "1e6", "1e7", "1e8", "1e10", "1e12")]
+    out += [Case(f"r-paper-{r}", f"r = {r}, the paper's APG limit (1e6)",
+                 nd(3) + ["-uzawa_r", r]) for r in ("1e8", "1e10", "1e12")]
+    out += [Case(f"r-fast-{r}", f"r = {r}", nd(4) + ["-uzawa_r", r] + FAST)
+            for r in ("1e2", "1e3", "1e4", "1e5", "1e6", "1e8", "1e10", "1e12")]
+    out.append(Case("r-fast-1e4-direct", "r = 1e4, exact Newton systems (Cholesky)",
+                    nd(4) + ["-uzawa_r", "1e4"] + FAST + DIRECT))
+    return out
+
+
+def scaled(E, r):
+    """-young E with the three tractions of the scene scaled by E / E0, and -uzawa_r r."""
+    s = float(E) / E0
+    return ["-young", E, "-scene_boundary_end_traction_0", num(10 * s),
+            "-scene_boundary_end_traction_2", num(20 * s),
+            "-scene_boundary_top_traction_2", num(-30 * s), "-uzawa_r", num(r)]
+
+
+def cases_young():
+    out = []
+    for mode, opts, n, r0, Es in (("fast", FAST, 4, "1e8", ("1", "1e3", "21.19e4", "1e9")),
+                                  ("faithful", FAITHFUL, 3, "1e6", ("1", "21.19e4", "1e9"))):
+        for E in Es:
+            s = float(E) / E0
+            out.append(Case(f"E-{mode}-{E}-rscaled", f"E = {E}, r = {r0} x E/E0",
+                            nd(n) + scaled(E, float(r0) * s) + opts))
+            if s != 1:
+                out.append(Case(f"E-{mode}-{E}-rfixed", f"E = {E}, r = {r0} (not scaled)",
+                                nd(n) + scaled(E, float(r0)) + opts))
+    return out
+
+
+def cases_poisson():
+    out = []
+    for nu in ("0", "0.3", "0.45", "0.49", "0.499", "0.4999"):
+        out += [Case(f"nu-fast-nd4-{nu}", f"nu = {nu}", nd(4) + ["-poisson", nu] + FAST),
+                Case(f"nu-fast-nd6-{nu}", f"nu = {nu}, Nd = 6", nd(6) + ["-poisson", nu] + FAST),
+                Case(f"nu-faithful-{nu}", f"nu = {nu}, r = 1e6",
+                     nd(3) + ["-poisson", nu] + FAITHFUL_R6)]
+    return out
+
+
+def cases_friction():
+    out = []
+    for F in ("0", "0.1", "0.3", "0.6", "1.0", "2.0"):
+        f = ["-friction", F]
+        out += [Case(f"F-fast-nd4-{F}", f"F = {F}", nd(4) + f + FAST),
+                Case(f"F-fast-nd6-{F}", f"F = {F}, Nd = 6", nd(6) + f + FAST),
+                Case(f"F-faithful-{F}", f"F = {F}, r = 1e6", nd(3) + f + FAITHFUL_R6)]
+        if F != "0":
+            out.append(Case(f"F-fast-cold-{F}", f"F = {F}, no fixed-point warm start",
+                            nd(4) + f + FAST + COLD))
+    for F in ("0.6", "1.0", "2.0"):
+        relax = ["-friction", F, "-fp_relaxation", "0.5"]
+        out += [Case(f"F-fast-relax-{F}", f"F = {F}, relaxation 0.5", nd(4) + relax + FAST,
+                     requires="-fp_relaxation"),
+                Case(f"F-faithful-relax-{F}", f"F = {F}, relaxation 0.5, r = 1e6",
+                     nd(3) + relax + FAITHFUL_R6, requires="-fp_relaxation")]
+    return out
+
+
+def cases_loads():
+    top2, top0, top1 = ("-scene_boundary_top_traction_2", "-scene_boundary_top_traction_0",
+                        "-scene_boundary_top_traction_1")
+    lift, notop = [top2, "30"], [top2, "0"]
+    tight = ["-uzawa_r", "1e6", "-apg_rtol", "1e-12", "-apg_max_it", "200000"]
+    out = [Case("load-lift", "top traction +30 (upward): lift-off", nd(4) + lift + FAST),
+           Case("load-lift-F0", "lift-off, frictionless",
+                nd(4) + lift + ["-friction", "0"] + FAST),
+           Case("load-lift-faithful", "lift-off, r = 1e6", nd(3) + lift + FAITHFUL_R6),
+           Case("load-lift-faithful-tight", "lift-off, r = 1e6, APG rtol 1e-12",
+                nd(3) + lift + tight),
+           Case("load-notop", "no top load (the end load +20 up remains)",
+                nd(4) + notop + FAST),
+           Case("load-notop-direct", "no top load, exact Newton systems (Cholesky)",
+                nd(4) + notop + FAST + DIRECT)]
+    out += [Case(f"load-press{p}", f"top pressure {p} (x{int(p) // -30})",
+                 nd(4) + [top2, p] + FAST) for p in ("-300", "-3000")]
+    out.append(Case("load-press-faithful", "top pressure -3000, r = 1e6",
+                    nd(3) + [top2, "-3000"] + FAITHFUL_R6))
+    out += [Case(f"load-tang{t}", f"top tangential traction {t} in x (F x pressure = 9)",
+                 nd(4) + [top0, t] + FAST) for t in ("5", "9", "15", "30", "100")]
+    out += [Case("load-tang30-faithful", "top tangential traction 30 in x, r = 1e6",
+                 nd(3) + [top0, "30"] + FAITHFUL_R6),
+            Case("load-tangy30", "top tangential traction 30 in y (sideways)",
+                 nd(4) + [top1, "30"] + FAST),
+            Case("load-stick", "full stick: F = 100", nd(4) + ["-friction", "100"] + FAST),
+            Case("load-stick-faithful", "full stick: F = 100, r = 1e6",
+                 nd(3) + ["-friction", "100"] + FAITHFUL_R6)]
+    return out
+
+
+def cells(c):
+    return ["-scene_mesh_cells_per_nd_0", str(c[0]), "-scene_mesh_cells_per_nd_1", str(c[1]),
+            "-scene_mesh_cells_per_nd_2", str(c[2])]
+
+
+def mesh(size, c, n):
+    """'AxBxC cells of hx x hy x hz (aspect a)' for a box `size` with cells_per_nd c, Nd n."""
+    h = [L / (k * n) for L, k in zip(size, c)]
+    return (f"{c[0] * n}x{c[1] * n}x{c[2] * n} cells of {' x '.join(f'{v:.2g}' for v in h)} "
+            f"(aspect {max(h) / min(h):.2g})")
+
+
+def cases_thin():
+    plate, wall = (3, 1, 0.03), (3, 0.03, 1)
+    on_plate = ["-scene_mesh_upper_2", "0.03", "-scene_boundary_top_plane_1", "0.03"]
+    on_wall = ["-scene_mesh_upper_1", "0.03", "-scene_boundary_sides_y1_plane_1", "0.03"]
+    fine, flat = (10, 3, 1), (3, 1, 1)
+    return [Case(f"thin-plate-nd{n}", f"plate 3 x 1 x 0.03, {mesh(plate, fine, n)}",
+                 nd(n) + on_plate + cells(fine) + FAST) for n in (1, 2, 3)] + [
+        Case("thin-plate-flat", f"plate 3 x 1 x 0.03, {mesh(plate, flat, 3)}",
+             nd(3) + on_plate + cells(flat) + FAST),
+        Case("thin-plate-faithful", f"plate 3 x 1 x 0.03, {mesh(plate, fine, 2)}, r = 1e6",
+             nd(2) + on_plate + cells(fine) + FAITHFUL_R6),
+        Case("thin-plate-toptraction-stale", "plate 3 x 1 x 0.03, top load left on plane z = 1",
+             nd(2) + on_plate[:2] + cells(fine) + FAST)] + [
+        Case(f"thin-wall-nd{n}", f"wall 3 x 0.03 x 1 on its edge, {mesh(wall, (10, 1, 10), n)}",
+             nd(n) + on_wall + cells((10, 1, 10)) + FAST) for n in (1, 2)]
+
+
+def cases_elements():
+    def row(c, n, opts=FAST, tag=""):
+        note = {"": "", "-faithful": ", r = 1e6", "-cold": ", no FP warm start"}[tag]
+        return Case(f"elem-{'x'.join(map(str, c))}-nd{n}{tag}", mesh((3, 1, 1), c, n) + note,
+                    nd(n) + cells(c) + opts)
+    return [row((3, 1, 1), 6), row((1, 1, 1), 4), row((1, 1, 1), 6),
+            row((1, 1, 1), 4, FAITHFUL_R6, "-faithful"), row((1, 3, 3), 2),
+            row((1, 3, 3), 2, FAST + COLD, "-cold"), row((1, 6, 6), 2),
+            row((3, 1, 6), 3), row((12, 1, 1), 3)]
+
+
+def cases_fvar():
+    def row(id_, expr, desc, n=4, opts=FAST):
+        return Case(id_, desc, nd(n) + ["-friction", expr] + opts)
+    return [row("fvar-half", "0.3*(x>1.5)", "F = 0.3 for x > 1.5, 0 near the clamp"),
+            row("fvar-half-nd6", "0.3*(x>1.5)", "same, Nd = 6", n=6),
+            row("fvar-half-faithful", "0.3*(x>1.5)", "same, r = 1e6", n=3, opts=FAITHFUL_R6),
+            row("fvar-half-clamp", "0.3*(x<1.5)", "F = 0.3 for x < 1.5, 0 at the loaded end"),
+            row("fvar-side", "where(y<0.5,0.6,0)", "F = 0.6 on y < 0.5, 0 on the other side"),
+            row("fvar-ramp", "0.1+0.5*x/3", "F from 0.1 to 0.6 along x"),
+            row("fvar-half-large", "2.0*(x>1.5)", "F = 2 for x > 1.5, 0 elsewhere"),
+            row("fvar-zero", "0*x", "F = 0 everywhere, as an expression"),
+            row("fvar-negative", "0.3-0.2*x", "invalid: F < 0 for x > 1.5"),
+            row("fvar-syntax", "0.3*(x>1.5", "invalid: unbalanced parenthesis"),
+            row("fvar-name", "mu*x", "invalid: unknown name")]
+
+
+# -- running -------------------------------------------------------------------------------
+def option_support(cases):
+    """{option: how it is known} for the options rows require: listed by -help, or accepted
+    by the solver (which rejects unknown options) on a tiny run; None if neither."""
+    p = subprocess.run([PY, "-m", "contact", "-help"], cwd=ROOT, capture_output=True, text=True)
+    out = {}
+    for c in cases:
+        if c.requires and c.requires not in out:
+            if re.search(re.escape(c.requires) + r"\b", p.stdout + p.stderr):
+                out[c.requires] = "listed by -help"
+                continue
+            value = c.opts[c.opts.index(c.requires) + 1]
+            probe = subprocess.run([PY, "-m", "contact", "-nd", "1", "-friction", "0",
+                                    c.requires, value, "-output_dir", os.path.join(OUT, "_probe")],
+                                   cwd=ROOT, capture_output=True, text=True)
+            ok = "unknown option" not in probe.stderr
+            out[c.requires] = "accepted by the solver, not listed by -help" if ok else None
+    return out
+
+
+def contact_status(d):
+    """Counts of separated / stick / slip contact nodes in solution.h5, or None."""
+    path = os.path.join(d, "solution.h5")
+    if not os.path.exists(path):
+        return None
+    with h5py.File(path, "r") as f:
+        if "/contact/status" not in f:
+            return None
+        return np.bincount(f["/contact/status"][...].astype(int), minlength=3).tolist()
+
+
+def shell(cmd):
+    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True).stdout.strip()
+
+
+def solver_state():
+    """The solver's commit, '+ uncommitted changes' when contact/ differs from it."""
+    commit = shell(["git", "rev-parse", "--short", "HEAD"])
+    return commit + (" + uncommitted changes" if shell(["git", "status", "--porcelain",
+                                                         "contact"]) else "")
+
+
+def execute(case, timeout):
+    """Run one case in a fresh directory; returns its result record (also saved)."""
+    d = os.path.join(OUT, case.id)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    cmd = [PY, "-m", "contact"] + case.opts + ["-output_dir", d]
+    print(f"[{case.id}] python -m contact {shlex.join(case.opts)}", flush=True)
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+        stdout, stderr, rc = p.stdout, p.stderr, p.returncode
+    except subprocess.TimeoutExpired as e:
+        stdout, stderr, rc = e.stdout or "", e.stderr or "", None
+        stdout, stderr = (s.decode() if isinstance(s, bytes) else s for s in (stdout, stderr))
+    wall = time.perf_counter() - t0
+    for name, text in (("stdout.txt", stdout), ("stderr.txt", stderr)):
+        with open(os.path.join(d, name), "w") as f:
+            f.write(text)
+    summary = None
+    if os.path.exists(os.path.join(d, "summary.json")):
+        with open(os.path.join(d, "summary.json")) as f:
+            summary = json.load(f)
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("contact: error:")]
+    last = [ln for ln in stderr.splitlines() if ln.strip()]
+    if rc is None:
+        verdict, error = "timeout", f"no result after {timeout} s"
+    elif rc == 0:
+        ok = summary is not None and summary.get("converged") is True
+        verdict, error = ("converged", "") if ok else ("failed", "exit 0 but not converged")
+    else:
+        verdict = "failed"
+        error = errors[-1] if errors else f"exit {rc}: {last[-1] if last else '(no stderr)'}"
+    res = {"id": case.id, "options": case.opts, "verdict": verdict, "error": error,
+           "traceback": "Traceback (most recent call last)" in stderr, "wall_s": wall,
+           "summary": summary, "status": contact_status(d), "solver": solver_state()}
+    with open(os.path.join(d, "result.json"), "w") as f:
+        json.dump(res, f, indent=1)
+    print(f"    {verdict} {error} ({wall:.1f} s)", flush=True)
+    return res
+
+
+def cached(case):
+    path = os.path.join(OUT, case.id, "result.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            res = json.load(f)
+        if res["options"] == case.opts:
+            return res
+    return None
+
+
+# -- the record ----------------------------------------------------------------------------
+def max_residual(s):
+    vals = [(v, k) for k, v in s["residuals"].items() if isinstance(v, (int, float))]
+    return max(vals, key=lambda t: -1 if math.isnan(t[0]) else t[0])
+
+
+def notes(res):
+    out = []
+    if res["traceback"]:
+        out.append("**Python traceback (bug)**")
+    s = res["summary"]
+    if res["verdict"] == "converged":
+        nums = [s["max_displacement"], s["energy"]] + list(s["residuals"].values())
+        if any(isinstance(v, float) and not math.isfinite(v) for v in nums):
+            out.append("**NaN/inf with converged true (bug)**")
+        elif max_residual(s)[0] > RESIDUAL_FLAG:
+            out.append(f"residual > {RESIDUAL_FLAG:g}")
+    return "; ".join(out)
+
+
+def row_cells(case, res):
+    opts = f"`{shlex.join(case.opts)}`"
+    if res is None:
+        return [case.id, case.desc, opts, case.mode, "not run (no cached result)"] + [""] * 7
+    if res["verdict"] == "skipped":
+        return [case.id, case.desc, opts, case.mode, res["error"]] + [""] * 7
+    verdict = res["verdict"] + (f": `{res['error']}`" if res["verdict"] != "converged" else "")
+    s, st = res["summary"], res["status"]
+    if s is None:
+        return [case.id, case.desc, opts, case.mode, verdict, "–", "–", f"{res['wall_s']:.1f}",
+                "–", "–", "–", notes(res)]
+    it, (rv, rk) = s["iterations"], max_residual(s)
+    return [case.id, case.desc, opts, case.mode, verdict,
+            f"{it['fixed_point']} / {it['uzawa_total']} / {it['inner_total']} / {it['ksp_total']}",
+            f"{s['time_s']['solve']:.2f}", f"{res['wall_s']:.1f}", f"{rv:.1e} ({rk})",
+            f"{s['max_displacement']:.4e}", " / ".join(map(str, st)) if st else "–", notes(res)]
+
+
+HEADER = ["id", "description", "options", "mode", "verdict", "FP / Uzawa / inner / KSP its",
+          "solve, s", "wall, s", "max residual", "max abs u", "contact nodes sep / stick / slip",
+          "notes"]
+
+
+def table(cases, results):
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    for c in cases:
+        cells_ = [str(x).replace("|", "\\|") for x in row_cells(c, results.get(c.id))]
+        lines.append("| " + " | ".join(cells_) + " |")
+    return lines
+
+
+def verdict_of(res):
+    return "not run" if res is None else res["verdict"]
+
+
+# -- findings: prose written from the recorded run, its numbers filled in from the rows ------
+class Rows:
+    """One group's results by row id, formatted; a row without a summary reads as its
+    verdict (failed, timeout) or '–'."""
+
+    def __init__(self, results):
+        self.results = results
+
+    def summary(self, id_):
+        r = self.results.get(id_)
+        return r.get("summary") if r else None
+
+    def ok(self, id_):
+        r = self.results.get(id_)
+        return bool(r) and r["verdict"] == "converged"
+
+    def missing(self, id_):
+        r = self.results.get(id_)
+        return r["verdict"] if r and r["verdict"] in ("failed", "timeout") else "–"
+
+    def failed(self, prefix):
+        return [i for i, r in self.results.items()
+                if i.startswith(prefix) and r and r["verdict"] in ("failed", "timeout")]
+
+    def failures(self, prefix):
+        """'row (loop, reason at iteration)' for the failed rows whose id starts with prefix."""
+        out = []
+        for i in self.failed(prefix):
+            err = self.results[i]["error"]
+            m = re.search(r"(\w+) loop did not converge: (\w+) at iteration (\d+)", err)
+            why = f"{m.group(1)} {m.group(2)} at {m.group(3)}" if m else err.split(":")[-1]
+            out.append(f"{i} ({why.strip()})")
+        return ", ".join(out) or "none"
+
+    def u(self, id_, fmt=".3e"):
+        s = self.summary(id_)
+        return format(s["max_displacement"], fmt) if s else self.missing(id_)
+
+    def it(self, id_, key):
+        s = self.summary(id_)
+        return str(s["iterations"][key]) if s else self.missing(id_)
+
+    def res(self, id_, key=None):
+        s = self.summary(id_)
+        if not s:
+            return "–"
+        return f"{(s['residuals'][key] if key else max_residual(s)[0]):.1e}"
+
+    def status(self, id_):
+        st = self.results[id_].get("status") if self.results.get(id_) else None
+        return "/".join(map(str, st)) if st else "–"
+
+    def ratio(self, a, b):
+        sa, sb = self.summary(a), self.summary(b)
+        return f"{sa['max_displacement'] / sb['max_displacement']:.2f}" if sa and sb else "–"
+
+
+def listing(values, fmt):
+    return ", ".join(fmt(v) for v in values)
+
+
+def findings_r(R):
+    big = ("1e6", "1e7", "1e8", "1e10")
+    paper = {r: f"r-paper-{r}" if r in ("1e8", "1e10") else f"r-faithful-{r}"
+             for r in ("1e4",) + big}
+    fast_big = ("1e6", "1e8", "1e10", "1e12")
+    return (
+        "Larger r helps the Uzawa loop only while the inner solver can follow. **Faithful "
+        "(APG, Nd = 3):** Uzawa iterations in total "
+        + listing(("1e4",) + big, lambda r: f"{R.it(paper[r], 'uzawa_total')} at r = {r}")
+        + " (1e8 and 1e10 with the paper's APG limit), but the APG iterations of the first "
+        "Uzawa step grow roughly like sqrt(r) or faster, since the step is 1/L with "
+        "L = L_A + r max w: " + listing(big, lambda r: R.it(paper[r], "inner_first"))
+        + f" for r = {', '.join(big)}. With the 20000 cap the failures are "
+        f"{R.failures('r-faithful-')}, and with the paper's limit {R.failures('r-paper-')}. "
+        "Accuracy stops improving too: the max residual is "
+        + listing(("1e4",) + big, lambda r: f"{R.res(paper[r])} (r = {r})")
+        + ". Penetration keeps falling with r, but the complementarity and Coulomb residuals "
+        "grow again beyond r = 1e6-1e7, because APG's stopping test (relative step < 1e-8 "
+        "with a step 1/L) stops further from the minimiser when L is larger. On this mesh "
+        "the faithful mode is best at r = 1e6 (smallest residual and time), not at 1e8; "
+        "below that the outer loop is the bottleneck (r = 1e4: "
+        f"{R.it('r-faithful-1e4', 'uzawa_total')} Uzawa iterations, residual "
+        f"{R.res('r-faithful-1e4')}). **Fast (SSN, Nd = 4):** from r = 1e6 to 1e12 the "
+        "iterations stay put (FP / Uzawa / SSN / KSP "
+        + listing(fast_big, lambda r: "/".join(R.it(f"r-fast-{r}", k) for k in
+                                             ("fixed_point", "uzawa_total", "inner_total",
+                                              "ksp_total")))
+        + ") and the penetration falls like 1/r ("
+        + listing(fast_big, lambda r: R.res(f"r-fast-{r}", "penetration"))
+        + "): larger r costs nothing because SSN solves the penalised systems with CG + GAMG. "
+        "The max residual stops improving at r = 1e8, where the Coulomb residual (set by the "
+        "fixed-point tolerance) takes over. Small r is where the fast mode breaks: failed "
+        f"rows {R.failures('r-fast-')}. At r = 1e4 Newton stalls (with "
+        "-ssn_monitor: the line search accepts step 2^-15 at every iteration, relative "
+        "change 4.3e-10 just above the 1e-10 tolerance, until the 100-iteration limit); with "
+        "exact Newton systems (Cholesky, `r-fast-1e4-direct`) it converges, so the stall "
+        "comes from the inexact Krylov solves of the fast preset (`-ssn_ksp_rtol 1e-3`).")
+
+
+def findings_young(R):
+    Es = ("1", "1e3", "21.19e4", "1e9")
+    fast = [R.u(f"E-fast-{E}-rscaled", ".6e") for E in Es]
+    faith = [R.u(f"E-faithful-{E}-rscaled", ".6e") for E in ("1", "21.19e4", "1e9")]
+    return (
+        "Units do not matter when r is scaled with E: for E = 1 ... 1e9 max|u| is "
+        f"{' = '.join(fast)} (fast) and {' = '.join(faith)} (faithful), with the same "
+        "iteration counts and residuals in every row; only the energy scales with E. If r is "
+        "not scaled, the penalty relative to the stiffness, r/E, changes. For small E it "
+        "grows (E = 1 with r = 1e8 acts like r = 2e13 at the paper's E): the fast mode does "
+        f"not mind (penetration {R.res('E-fast-1-rfixed', 'penetration')}), the faithful APG "
+        f"{'hits its cap' if not R.ok('E-faithful-1-rfixed') else 'still converges'}. For "
+        "large E it shrinks (E = 1e9 with r = 1e8 acts like r = 2e4): fast mode needs "
+        f"{R.it('E-fast-1e9-rfixed', 'fixed_point')} FP / "
+        f"{R.it('E-fast-1e9-rfixed', 'uzawa_total')} Uzawa iterations instead of "
+        f"{R.it('E-fast-1e9-rscaled', 'fixed_point')} / "
+        f"{R.it('E-fast-1e9-rscaled', 'uzawa_total')}, with residual "
+        f"{R.res('E-fast-1e9-rfixed')} instead of {R.res('E-fast-1e9-rscaled')}; faithful "
+        "(r = 1e6 at E = 1e9, like r = 212) "
+        f"{'runs into the Uzawa limit' if not R.ok('E-faithful-1e9-rfixed') else 'converges'}. "
+        "So r is a stiffness and must be given relative to E: the default r = 1e8 is right "
+        "only for E near 2e5 in the paper's units (MPa).")
+
+
+def findings_poisson(R):
+    nus = ("0", "0.3", "0.45", "0.49", "0.499", "0.4999")
+    return (
+        "Near-incompressible locking shows and is not hidden. max|u| at Nd = 4: "
+        + listing(nus, lambda n: f"{R.u(f'nu-fast-nd4-{n}')} (nu = {n})")
+        + ": it first rises with nu, then falls; at nu = 0.4999 it is "
+        f"{R.ratio('nu-fast-nd4-0.4999', 'nu-fast-nd4-0.3')} of the nu = 0.3 value at Nd = 4 "
+        f"and {R.ratio('nu-fast-nd6-0.4999', 'nu-fast-nd6-0.3')} at Nd = 6. Refining from Nd "
+        f"= 4 to 6 raises max|u| by a factor {R.ratio('nu-fast-nd6-0.4999', 'nu-fast-nd4-0.4999')}"
+        f" at nu = 0.4999 but only {R.ratio('nu-fast-nd6-0.3', 'nu-fast-nd4-0.3')} at nu = 0.3: "
+        "the trilinear (Q1) elements lock volumetrically and the error goes away only slowly "
+        "with refinement, so results for nu > 0.49 are too stiff (a mixed or B-bar "
+        "formulation would be needed). The fast solver survives it (all rows converge), at a "
+        "cost in the linear solves: KSP iterations at Nd = 4 "
+        + listing(nus, lambda n: R.it(f"nu-fast-nd4-{n}", "ksp_total"))
+        + " (GAMG degrades as lambda/mu grows). The faithful APG does not: L_A grows like "
+        "lambda ~ 1/(1 - 2 nu), its iterations rise ("
+        + listing(("0", "0.3", "0.45"), lambda n: R.it(f"nu-faithful-{n}", "inner_total"))
+        + f" for nu = 0, 0.3, 0.45) and it fails beyond: {R.failures('nu-faithful-')}.")
+
+
+def findings_friction(R):
+    Fs = ("0.1", "0.3", "0.6", "1.0", "2.0")
+    fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
+          if R.summary(i) and "relax" not in i and not i.endswith("-0")]
+    warm = [i for i in R.results if i.startswith("F-fast-nd") and R.summary(i)]
+    cold = [i for i in R.results if i.startswith("F-fast-cold") and R.summary(i)]
+    faithful = [i for i in R.results if i.startswith("F-faithful") and R.summary(i)]
+
+    def worst(ids):
+        return max((max_residual(R.summary(i))[0] for i in ids), default=float("nan"))
+
+    return (
+        "The fixed point itself converged in every row that got that far (F > 0: "
+        f"{min(fp)}-{max(fp)} iterations without relaxation; also at F = 100 in the loads "
+        "group), so the new oscillation/stagnation detection never fired on this scene. The "
+        f"failures are in the fast mode's inner solver: {R.failures('F-fast-')}. With the "
+        "preset's fixed-point warm start (`-fp_warm_start xl`) SSN fails its line search "
+        "at the first Newton step of a later fixed-point iteration, and the warm-started "
+        f"rows that converge at F >= 0.6 end with Coulomb residuals up to {worst(warm):.1e} "
+        "(flagged). Without the warm "
+        f"start (`-fp_warm_start none`) every F converges, max residual {worst(cold):.1e}, "
+        "for two to four times the SSN iterations ("
+        + listing(Fs, lambda F: f"{R.it(f'F-fast-nd4-{F}', 'inner_total')} -> "
+                  f"{R.it(f'F-fast-cold-{F}', 'inner_total')}") + f" for F = {', '.join(Fs)})."
+        " `-fp_relaxation 0.5` is no cure here, because the fixed point is not what fails: "
+        "in faithful mode it gives the same solution with about three times the fixed-point "
+        "iterations ("
+        + listing(("0.6", "1.0", "2.0"),
+                  lambda F: f"{R.it(f'F-faithful-{F}', 'fixed_point')} -> "
+                            f"{R.it(f'F-faithful-relax-{F}', 'fixed_point')}")
+        + " for F = 0.6, 1, 2), and in fast mode it still fails at F = 0.6 and adds an SSN "
+        "stall at F = 1.0. The faithful mode (r = 1e6) converges for every F with residuals "
+        f"<= {worst(faithful):.1e}. max|u| falls as friction holds the beam: "
+        + listing(Fs, lambda F: R.u(f"F-fast-cold-{F}")) + f" for F = {', '.join(Fs)} "
+        f"(Nd = 4, cold start), {R.u('F-fast-nd4-0')} without friction.")
+
+
+def findings_loads(R):
+    return (
+        "**Lift-off:** the whole contact face separates (status "
+        f"{R.status('load-lift')}) and the fast mode converges in "
+        f"{R.it('load-lift', 'fixed_point')} FP / {R.it('load-lift', 'uzawa_total')} Uzawa / "
+        f"{R.it('load-lift', 'inner_total')} SSN iterations, but with residuals "
+        f"{R.res('load-lift')}, just under the solution check's tolerance 1e-3, where the "
+        "exact answer is 0. With no pressure carried, the residuals are relative to the "
+        "floor 1e-3 x max nodal load / max contact weight, and the fast preset's inexact "
+        "linear solves (`-ssn_ksp_rtol 1e-3`) leave reactions of that size at the free "
+        "contact nodes. The check therefore rejects correct lift-off solutions: in faithful "
+        "mode (`load-lift-faithful`; with APG rtol 1e-12 it passes at "
+        f"{R.res('load-lift-faithful-tight')}) and with no top load in fast mode "
+        "(`load-notop`, where exact Cholesky Newton systems give "
+        f"{R.res('load-notop-direct')} for the same problem). **Pressed flat** (pressure x10, "
+        f"x100): no contact node separates ({R.status('load-press-300')}, "
+        f"{R.status('load-press-3000')}), the iteration counts stay those of the paper's load "
+        f"and max|u| grows with the pressure ({R.u('load-press-300')}, "
+        f"{R.u('load-press-3000')}). "
+        "**Tangential load** t on the top against the friction limit F x 30 = 9 "
+        "(separated/stick/slip): "
+        + listing(("5", "9", "15", "30", "100"),
+                  lambda t: f"t = {t}: {R.status(f'load-tang{t}')}")
+        + ". From the limit on no node sticks; the clamp at x = 0 keeps the body from sliding "
+        "away, and at t = 100 the load tips the beam and more of the face lifts. All "
+        "converge with residuals <= "
+        f"{max(float(R.res(f'load-tang{t}')) for t in ('5', '9', '15', '30', '100')):.0e} "
+        f"(Uzawa iterations {R.it('load-tang5', 'uzawa_total')} to "
+        f"{R.it('load-tang30', 'uzawa_total')}). **Full stick** (F = 100): no slipping node "
+        f"({R.status('load-stick')}); fast residual {R.res('load-stick')}, faithful "
+        f"{R.res('load-stick-faithful')} (Coulomb: APG stops on a small step, not a small "
+        "error).")
+
+
+def findings_thin(R):
+    return (
+        "The 1:100 plate and wall converge in fast mode on every mesh. The pressed plate "
+        f"has all contact nodes in contact (status {R.status('thin-plate-nd3')} at Nd = 3) "
+        f"and max|u| {R.u('thin-plate-nd1')} to {R.u('thin-plate-nd3')} with refinement; "
+        "the KSP iterations follow the element shape more than the mesh size "
+        f"({R.it('thin-plate-flat', 'ksp_total')} on 81 cells of aspect 33 against "
+        f"{R.it('thin-plate-nd3', 'ksp_total')} on 810 cells of aspect 11), the Newton and "
+        "Uzawa counts do not. The faithful APG "
+        f"{'fails the 20000 cap' if not R.ok('thin-plate-faithful') else 'converges'} on the "
+        "plate even at r = 1e6: the thin direction raises L_A (stiffness ~ 1/h^2 across the "
+        "thickness) and slows APG. A traction part whose plane matches no face (the top at "
+        "z = 1 left on a 0.03-thick plate, `thin-plate-toptraction-stale`) is "
+        + ("rejected with a named error." if R.failed("thin-plate-toptraction")
+           else "**not** rejected: the load is silently dropped."))
+
+
+def findings_elements(R):
+    return (
+        "Elongated hexahedra are a discretisation problem more than a solver problem: max|u| "
+        f"with aspect-3 elements is {R.u('elem-1x1x1-nd4')} (4x4x4) and {R.u('elem-1x1x1-nd6')} "
+        f"(6x6x6), against {R.u('elem-3x1x1-nd6')} on the cube mesh (Nd = 6); aspect 9-18 "
+        f"gives {R.u('elem-1x3x3-nd2-cold')} and {R.u('elem-1x6x6-nd2')}, "
+        f"{R.ratio('elem-1x6x6-nd2', 'elem-3x1x1-nd6')} of the cube value (long Q1 elements "
+        "lock in bending), while short or flat elements (aspect 4-6 the other way) come "
+        f"close to it ({R.u('elem-12x1x1-nd3')}, {R.u('elem-3x1x6-nd3')}). Solvers: failed rows "
+        f"{R.failures('elem-')}; the fast mode on 2x6x6 (aspect 9) fails "
+        "the SSN line search with the fixed-point warm start and converges without it (the "
+        "same failure as in the friction group). Flat elements cost KSP iterations "
+        f"({R.it('elem-3x1x6-nd3', 'ksp_total')} vs {R.it('elem-3x1x1-nd6', 'ksp_total')}).")
+
+
+def findings_fvar(R):
+    fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
+          if R.summary(i) and R.summary(i)["iterations"]["fixed_point"]]
+    return (
+        "F varying over the face, with F = 0 on part of it, converges in every mode "
+        f"(fixed point {min(fp)}-{max(fp)} iterations; F = 0.3 for x > 1.5: status "
+        f"{R.status('fvar-half')}, no node sticks). F = 0 everywhere written as an "
+        f"expression takes the frictionless path ({R.it('fvar-zero', 'fixed_point')} FP "
+        f"iterations, max|u| {R.u('fvar-zero')}, as with `-friction 0`). F = 2 on half the face "
+        f"converges with Coulomb residual {R.res('fvar-half-large', 'coulomb')} (the warm start "
+        "again, see the friction group). Malformed F (negative somewhere, a syntax error, an "
+        "unknown name) gives one-line named errors, no traceback.")
+
+
+GROUPS = {
+    "r": ("Uzawa parameter r",
+          "The paper's beam (F = 0.3) at Nd = 3 in faithful mode (480 dofs) and Nd = 4 in "
+          "fast mode (975 dofs). `r-faithful-*` cap APG at 20000 iterations, `r-paper-*` "
+          "keep the paper's limit (1e6).", cases_r, findings_r),
+    "young": ("Young's modulus and units",
+              "E from 1 to 1e9 with the three tractions multiplied by E / 21.19e4, so the "
+              "exact displacement is the same for every E; r either scaled the same way "
+              "(1e8 x E/E0 fast, 1e6 x E/E0 faithful) or left as it is.",
+              cases_young, findings_young),
+    "poisson": ("Poisson ratio",
+                "nu from 0 to 0.4999: fast at Nd = 4 and 6, faithful at Nd = 3 with r = 1e6.",
+                cases_poisson, findings_poisson),
+    "friction": ("Friction coefficient",
+                 "F from 0 to 2: fast at Nd = 4 and 6, fast without the preset's fixed-point "
+                 "warm start (`cold`), faithful at Nd = 3 with r = 1e6, and "
+                 "`-fp_relaxation 0.5` for F >= 0.6.", cases_friction, findings_friction),
+    "loads": ("Loads",
+              "Top traction +30 (upward; the end traction (10, 0, 20) stays) and 0 both lift "
+              "the whole contact face; pressure x10 and x100 press it flat; a tangential top "
+              "traction t in x against the friction limit F x 30 = 9; full stick (F = 100).",
+              cases_loads, findings_loads),
+    "thin": ("Thin bodies",
+             "A plate 3 x 1 x 0.03 pressed on its large face (the top traction moved to "
+             "z = 0.03 with `-scene_boundary_top_plane_1`) and a wall 3 x 0.03 x 1 standing "
+             "on its edge: aspect ratio 1:100.", cases_thin, findings_thin),
+    "elements": ("Elongated elements",
+                 "The 3 x 1 x 1 beam meshed with elongated or flat hexahedra "
+                 "(`-scene_mesh_cells_per_nd_*`); the cube mesh at Nd = 6 is the reference.",
+                 cases_elements, findings_elements),
+    "fvar": ("Friction varying over the contact face",
+             "F as an expression of x, y, z, zero on part of the face, and three malformed "
+             "values that must give a one-line error.", cases_fvar, findings_fvar),
+}
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=list(GROUPS), action="append",
+                    help="run only this group (repeatable); others come from the cache")
+    ap.add_argument("--force", action="store_true", help="rerun cached rows")
+    ap.add_argument("--timeout", type=float, default=120.0, help="per-run limit, s")
+    ap.add_argument("--record", default=RECORD)
+    args = ap.parse_args()
+    os.makedirs(OUT, exist_ok=True)
+    t0 = time.perf_counter()
+    support = option_support(c for g in GROUPS.values() for c in g[2]())
+    results, executed = {}, 0
+    for name, (title, intro, make, _) in GROUPS.items():
+        run_group = args.only is None or name in args.only
+        for c in make():
+            if c.requires and not support[c.requires]:
+                results[c.id] = {"verdict": "skipped",
+                                 "error": f"skipped: the solver does not know `{c.requires}`"}
+                continue
+            res = None if args.force and run_group else cached(c)
+            if res is None and run_group:
+                res = execute(c, args.timeout)
+                executed += 1
+            results[c.id] = res
+    elapsed = time.perf_counter() - t0
+
+    counts = {}
+    for res in results.values():
+        counts[verdict_of(res)] = counts.get(verdict_of(res), 0) + 1
+    walls = sum(r["wall_s"] for r in results.values() if r and "wall_s" in r)
+    ran = sorted(os.path.getmtime(p) for p in (os.path.join(OUT, i, "result.json")
+                                               for i in results) if os.path.exists(p))
+    when = " and ".join(time.strftime("%Y-%m-%d %H:%M %Z", time.localtime(t))
+                        for t in (ran[0], ran[-1])) if ran else "–"
+    states = sorted({r.get("solver", "not recorded") for r in results.values()
+                     if r and "wall_s" in r})
+    with open("/proc/cpuinfo") as f:
+        cpu = re.search(r"model name\s*:\s*(.*)", f.read())
+    lines = [
+        "# Stability suite (make stability)", "",
+        f"- Date: {shell(['date'])} (report written); the rows ran between {when}.",
+        f"- Machine: {platform.node()}, {cpu.group(1) if cpu else platform.processor()}, "
+        f"{os.cpu_count()} cores shared with other jobs (times are indicative); 1 MPI rank.",
+        "- Command: `make stability` (runs `runs/stability.py $(STABILITY_ARGS)`); this "
+        f"report: `{shlex.join(['runs/stability.py'] + sys.argv[1:])}`, per-run timeout "
+        f"{args.timeout:g} s.",
+        f"- Solver (commit of the rows' runs): {', '.join(states) or '–'}.",
+        f"- Verdicts: {', '.join(f'{v} {n}' for v, n in sorted(counts.items()))} "
+        f"({len(results)} rows). Sum of the rows' wall times {walls:.0f} s; this invocation "
+        f"{elapsed:.0f} s ({executed} runs executed, the rest from runs/out/stability/).",
+        "- Optional options: " + (", ".join(
+            f"`{o}` {how or 'unknown to the solver: its rows are skipped'}"
+            for o, how in support.items()) or "none") + ".", "",
+        "Columns: iterations are the totals of the fixed point (FP), Uzawa, the inner solver "
+        "(APG or SSN) and the KSP of SSN; `max residual` is the largest of the relative "
+        "penetration, complementarity and Coulomb residuals of summary.json (computed from "
+        "the reaction A u - b); `max abs u` is the maximum nodal displacement; the contact "
+        "status counts come from solution.h5 (clamped contact nodes excluded). Faithful rows "
+        "cap APG at 20000 iterations (`-apg_max_it 20000`) unless they say otherwise, so they "
+        "fail with a named reason instead of running for hours; `r = 1e6` rows use an r the "
+        "capped APG reaches at Nd = 3 (the paper's 1e8 does not, see the r group). A note "
+        f"marks a converged row whose max residual exceeds {RESIDUAL_FLAG:g}. The findings "
+        "were written from the run recorded here: their numbers are filled in from the rows, "
+        "their wording is not re-derived when the solver changes.", ""]
+    for name, (title, intro, make, findings) in GROUPS.items():
+        cases = make()
+        gres = {c.id: results[c.id] for c in cases}
+        lines += [f"## {title} (`--only {name}`)", "", intro, ""] + table(cases, gres)
+        lines += ["", "**Findings.** " + findings(Rows(gres)), ""]
+    text = "\n".join(lines) + "\n"
+    with open(args.record, "w") as f:
+        f.write(text)
+    print(f"recorded in {args.record}; verdicts {counts}; {elapsed:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
