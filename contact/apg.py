@@ -99,7 +99,7 @@ class APG(Loop):
         self.L_local = None              # backtracking: last accepted local constant
         self.first_iterations = None     # of the very first call (Table 1's column)
         self._metric_vecs = None         # diagonal metric: (D, 1/D, tangential 1/D)
-        v = A.createVecRight()
+        v = b.duplicate()                # the DM's Vec type, not the Mat's default
         self.y, self.grad, self.xnew, self.d = (v.duplicate() for _ in range(4))
         self._ax = None                  # vectors of the A x path, made on first use
         v.destroy()
@@ -144,7 +144,7 @@ class APG(Loop):
     # -- Lipschitz constants and the metric ----------------------------------------------
     def _power_iteration(self, apply):
         """Power-iteration estimate of lambda_max of the SPD operator `apply(v, out)`."""
-        v = self.A.createVecRight()
+        v = self.b.duplicate()
         lo, hi = v.getOwnershipRange()
         v.setArray(np.sin(0.7 * np.arange(lo, hi) + 0.3) + 1.1)    # same on any rank count
         w = v.duplicate()
@@ -179,7 +179,7 @@ class APG(Loop):
         iteration, ||S||_inf). Returns (L_S, diag(A))."""
         _EV_LIP.begin()
         A = self.A
-        dA = A.getDiagonal()
+        dA = A.getDiagonal(self.b.duplicate())
         if not dA.min()[1] > 0.0:
             raise ValueError("-apg_metric diagonal needs a positive diagonal of A")
         h = dA.copy()
@@ -416,7 +416,7 @@ class APG(Loop):
         """MatMult on the new iterate (or each backtracking trial), A y by linearity:
         -apg_restart function and/or -apg_step backtracking."""
         if self._ax is None:
-            self._ax = [self.A.createVecRight() for _ in range(5)]
+            self._ax = [self.b.duplicate() for _ in range(5)]
         Ax, Axp, Axn, Ay, dd = self._ax
         cs, A = self.cs, self.A
         use_prox = lam is not None

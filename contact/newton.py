@@ -40,7 +40,8 @@ class SemismoothNewton(Loop):
     options = ("linesearch", "pc_reuse", "pc_lag")     # and the KSP's: -ssn_ksp_*, -ssn_pc_*
     title = "SSN"
     indent = 4
-    hint = "raise -ssn_max_it, or try -ssn_linesearch true"
+    hint = ("raise -ssn_max_it; with -solver_mode fast, try -fp_warm_start none, or the "
+            "paper's -uzawa_inner apg")
     name = "ssn"
 
     def __init__(self, A, b, cset, r, clamped, diag_scale, rtol=1e-10, max_it=100):

@@ -99,7 +99,7 @@ class ContactProblem:
         else:
             self.cs = None
         self._check_rigid_motion()
-        self.x = self.A.createVecRight()
+        self.x = self.b.duplicate()              # the DM's Vec type (cuda, ...), as b
         self.x.set(0.0)
 
     def _check_rigid_motion(self):

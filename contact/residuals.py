@@ -8,7 +8,8 @@ independently of the multipliers the loops carried. At contact node j, weight w_
   sigma_tau,j = (R_j1, R_j2) / w_j                 (friction traction)
   u_nu,j      = -u_j3,  u_tau,j = (u_j1, u_j2)
 Relative residuals (0 for an exact discrete solution); pressures are scaled by
-  max_j |g_j|, or by 1e-3 max_i |b_i| / max_j w_j if larger (a face carrying ~nothing):
+  max_j |g_j|, or by max_i |b_i| / max_j w_j (about the applied traction) if larger,
+  so that a face carrying nothing is not judged by the rounding of its reactions:
   penetration     max_j (u_nu,j)^+ / max_nodes |u|
   complementarity max_j |g_j u_nu,j| / (max_j |g_j| * max_nodes |u|)
   coulomb         max of  max_j (|sigma_tau,j| - F_j g_j^+)^+ / max_j |g_j|   (friction cone)
@@ -91,9 +92,9 @@ def residuals(problem, x=None, slip_tol=1e-6):
     ut = np.linalg.norm(u[:, :2], axis=1)
     gmax = _max(comm, np.abs(g))
     # a pressure scale for when the contact carries (almost) nothing: the largest nodal
-    # load spread over the largest contact weight, times 1e-3
+    # load spread over the largest contact weight (about the applied traction)
     bmax = problem.b.norm(PETSc.NormType.INFINITY)
-    p_ref = 1e-3 * bmax / max(_max(comm, w), 1e-300)
+    p_ref = bmax / max(_max(comm, w), 1e-300)
     gden = max(gmax, p_ref) if max(gmax, p_ref) > 0 else 1.0
     uden = umax if umax > 0 else 1.0
     pen = _max(comm, np.maximum(un, 0.0)) / uden
