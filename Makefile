@@ -21,6 +21,8 @@ MPIRUN   := mpirun -n $(NP) --oversubscribe
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
 	@echo "make test                       install if needed, run the suite on 1 and 2 ranks"
+	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"
+	@echo "make petsc-gpu [GPU_ARGS=--cpu]  (offline) CUDA PETSc + petsc4py -> .gpu/prefix (README: GPU)"
 	@echo "make install                    Debian packages + .venv (idempotent)"
 	@echo "make bench                      speed benchmarks -> runs/results/bench.md"
 	@echo "make report                     error against run time -> runs/results/report.md"
@@ -76,3 +78,16 @@ stability: install
 
 clean:
 	rm -rf runs/out .pytest_cache
+
+# GPU back end (README "GPU"): a CUDA PETSc + mpi4py + petsc4py from PyPI's source
+# distributions; the fetch needs the network, the build does not (runs/petsc_gpu.sh).
+GPU_DIST   ?= .gpu/dist
+GPU_PREFIX ?= .gpu/prefix
+GPU_PYTHON ?= python3
+.PHONY: petsc-gpu petsc-gpu-fetch
+
+petsc-gpu-fetch:
+	PYTHON=$(GPU_PYTHON) runs/petsc_gpu.sh fetch $(GPU_DIST)
+
+petsc-gpu:
+	PYTHON=$(GPU_PYTHON) runs/petsc_gpu.sh build $(GPU_DIST) $(GPU_PREFIX) $(GPU_ARGS)
