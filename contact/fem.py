@@ -103,7 +103,7 @@ def nodal_face_weights(faces, coords):
 def assemble_stiffness(dm, conn, coords, young, poisson):
     """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained."""
     lam, mu = lame(young, poisson)
-    A = dm.createMatrix()
+    A = dm.createMat()           # createMatrix is gone in petsc4py >= 3.20
     if A.getBlockSize() != 3:
         A.setBlockSize(3)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
