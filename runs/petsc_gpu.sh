@@ -361,7 +361,7 @@ build() {
     echo "export CONTACT_PETSC_KIND=$kind"
   } > "$prefix/env.sh"
   say "built in $((SECONDS - t_start)) s"
-  check "$prefix"
+  check "$prefix" || say "check failed (status $?; 3 = built, but no GPU on this machine)"
   cat <<EOF
 
 Use it (from the repository root):
@@ -396,6 +396,7 @@ print(f"PETSc {v[0]}.{v[1]}.{v[2]} at {petsc4py.get_config()['PETSC_DIR']}; "
 cuda = PETSc.Sys.hasExternalPackage("cuda")
 print("CUDA in this PETSc:", cuda)
 if cuda:
+  try:
     x = PETSc.Vec().create(comm=PETSc.COMM_WORLD)
     x.setSizes(1000)
     x.setType("cuda")
@@ -411,6 +412,9 @@ if cuda:
     A.mult(x, y)
     print(f"GPU check: {x.getType()} {A.getType()} -> {y.getType()}, |y|_inf = "
           f"{y.norm(PETSc.NormType.INFINITY)} (expected 6.0)")
+  except PETSc.Error as e:
+    print(f"GPU check: no usable GPU here ({e})")
+    sys.exit(3)
 EOF
   )
 }
