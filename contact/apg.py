@@ -104,8 +104,7 @@ class APG(Loop):
         self._ax = None                  # vectors of the A x path, made on first use
         v.destroy()
         c = cset
-        self.cz, self.s, self.t1, self.t2, self.nrm, self.fac, self.thr = \
-            (c.vec() for _ in range(7))
+        self.cz, self.s, self.t1, self.t2, self.thr = (c.vec() for _ in range(5))
         self._cw = None                  # contact work vectors of the variants
 
     def set_from_options(self):
@@ -251,19 +250,6 @@ class APG(Loop):
             cs.scatter(self.s, out, 2, mode=PETSc.InsertMode.ADD_VALUES)
         return out
 
-    def prox(self, z, thr):
-        """In place on z: tangential pairs shrunk by thr_j = alpha lambda_j."""
-        cs = self.cs
-        cs.tangential_norm(z, self.t1, self.t2, self.nrm)
-        self.fac.waxpy(-1.0, thr, self.nrm)                # ||v|| - thr
-        self.fac.pointwiseMax(self.fac, cs.zero)
-        self.nrm.shift(1e-300)                             # 0/0 -> 0 (fac is 0 there)
-        self.fac.pointwiseDivide(self.fac, self.nrm)
-        self.t1.pointwiseMult(self.t1, self.fac)
-        self.t2.pointwiseMult(self.t2, self.fac)
-        cs.scatter(self.t1, z, 0)
-        cs.scatter(self.t2, z, 1)
-
     def _contact_work(self):
         if self._cw is None:
             self._cw = [self.cs.vec() for _ in range(11)]
@@ -395,7 +381,7 @@ class APG(Loop):
             else:
                 xnew.waxpy(-alpha, grad, y)
             if use_prox:
-                self.prox(xnew, self.thr)
+                self.cs.shrink_tangential(xnew, self.thr)
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)
             if restart:
                 grad.waxpy(-1.0, xnew, y)                  # y - x^i (grad is free now)
@@ -465,7 +451,7 @@ class APG(Loop):
                     if use_prox:
                         lam.copy(self.thr)
                         self.thr.scale(1.0 / L)
-                        self.prox(xnew, self.thr)
+                        self.cs.shrink_tangential(xnew, self.thr)
                     A.mult(xnew, Axn)
                     mm += 1
                     if L >= L_glob:
@@ -488,7 +474,7 @@ class APG(Loop):
                 else:
                     xnew.waxpy(-alpha, grad, y)
                 if use_prox:
-                    self.prox(xnew, self.thr)
+                    self.cs.shrink_tangential(xnew, self.thr)
                 A.mult(xnew, Axn)
                 mm += 1
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)

@@ -84,6 +84,7 @@ class ContactSet:
         self.has_friction = self.F.norm(PETSc.NormType.INFINITY) > 0.0
         self.zero = self.vec(0.0)
         self._work = self.vec()
+        self._shrink = None                                      # shrink_tangential's Vecs
         self._scatters = []
         for c in range(3):
             is_ = PETSc.IS().createGeneral(self.dofs[c], comm=comm)
@@ -121,6 +122,22 @@ class ContactSet:
         self.gather(x, out, 2)
         out.scale(-1.0)
         return out
+
+    def shrink_tangential(self, z, thr):
+        """In place on z: the prox of sum_j thr_j |z_tau,j|, i.e. each tangential pair
+        shrunk by thr_j (contact Vec): z_tau <- max(|z_tau| - thr, 0) z_tau / |z_tau|."""
+        if self._shrink is None:
+            self._shrink = [self.vec() for _ in range(4)]
+        t1, t2, nrm, fac = self._shrink
+        self.tangential_norm(z, t1, t2, nrm)
+        fac.waxpy(-1.0, thr, nrm)                          # ||v|| - thr
+        fac.pointwiseMax(fac, self.zero)
+        nrm.shift(1e-300)                                  # 0/0 -> 0 (fac is 0 there)
+        fac.pointwiseDivide(fac, nrm)
+        t1.pointwiseMult(t1, fac)
+        t2.pointwiseMult(t2, fac)
+        self.scatter(t1, z, 0)
+        self.scatter(t2, z, 1)
 
     def tangential_norm(self, x, t1, t2, out):
         """|x_tau| = sqrt(x1^2 + x2^2) per contact node; t1, t2 are left holding x1, x2."""

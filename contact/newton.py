@@ -305,16 +305,8 @@ class SemismoothNewton(Loop):
             self.L_G = self.A.norm(PETSc.NormType.INFINITY) + self.r * wmax
         self.xt.waxpy(-1.0 / self.L_G, grad, x)
         if lam is not None:
-            cs = self.cs
-            cs.gather(self.xt, self.c0, 0)
-            cs.gather(self.xt, self.c1, 1)
-            y1, y2 = cs.local_array(self.c0), cs.local_array(self.c1)
-            ny = np.hypot(y1, y2)
-            f = np.maximum(0.0, 1.0 - (lam / self.L_G) / np.maximum(ny, 1e-300))
-            self.c0.setArray(f * y1)
-            self.c1.setArray(f * y2)
-            cs.scatter(self.c0, self.xt, 0)
-            cs.scatter(self.c1, self.xt, 1)
+            self.c2.setArray(lam / self.L_G)
+            self.cs.shrink_tangential(self.xt, self.c2)
         self.A.mult(self.xt, self.Axt)
         return self.objective(self.xt, self.Axt, l, lam)
 

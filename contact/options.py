@@ -72,7 +72,7 @@ def _ours(name):
         return False
     if name.startswith("ssn_"):
         rest = name[len("ssn_"):]
-        return not rest.startswith(PETSC_UNDER_SSN) or rest in ("pc_reuse", "pc_lag")
+        return not rest.startswith(PETSC_UNDER_SSN) or rest in SemismoothNewton.options
     return True
 
 
