@@ -1,9 +1,17 @@
 """The discrete contact set on Gamma_c.
 
 Contact nodes j in P: the vertices of the contact faces whose normal dof is not clamped.
-For each, the lumped (trapezoidal) weight w_j = int_{Gamma_c} N_j ds, the friction
-coefficient F_j, and the dofs of its normal and tangential components. The foundation is
-{x3 <= 0} with outward normal nu = (0,0,-1): x_j . nu = -x_j3, x_j,tau = (x_j1, x_j2).
+For each, the lumped weight w_j = int_{Gamma_c} N_j ds over the actual (bilinear) faces,
+so curved and graded faces integrate correctly (on a uniform flat face this is the
+paper's trapezoidal rule), the friction coefficient F_j, the initial gap gap_j, and the
+dofs of its normal and tangential components.
+
+The foundation is the half-space {(X - p) . n <= 0} behind the plane through p with unit
+normal n = +e_k (k = x, y or z; the paper: p = 0, n = e_z). The body's outward normal on
+the contact is nu = -n, so u_nu = u . nu = -u_k and x_tau = the two other components.
+Non-penetration: u_nu,j <= gap_j, where gap_j = (X_j - p) . n (the distance to the plane)
+or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)).
+In contact space, component 2 is the normal axis k and 0, 1 are the tangential axes.
 
 Contact-space quantities (l, g, w, F, ...) are PETSc Vecs of the contact nodes owned by
 each rank; `gather_*` / `scatter_*` move the normal and tangential components between a
@@ -20,8 +28,9 @@ INSERT = PETSc.InsertMode.INSERT_VALUES
 ADD = PETSc.InsertMode.ADD_VALUES
 
 
-def friction_values(spec, xyz):
-    """F_j from a number or an expression in x, y, z (NumPy), e.g. 'where(x < 1.5, 0.3, 0)'."""
+def friction_values(spec, xyz, what="friction"):
+    """F_j (or another nodal value: `what`) from a number or an expression in x, y, z
+    (NumPy), e.g. 'where(x < 1.5, 0.3, 0)'."""
     if isinstance(spec, (int, float)):
         return np.full(xyz.shape[0], float(spec))
     names = {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "where": np.where,
@@ -32,15 +41,18 @@ def friction_values(spec, xyz):
             vals = eval(str(spec), {"__builtins__": {}}, names)   # scene files are trusted
         return np.broadcast_to(np.asarray(vals, dtype=float), (xyz.shape[0],)).copy()
     except Exception as e:                                 # any error of the user's expression
-        raise ValueError(f"friction expression {spec!r} cannot be evaluated: "
+        raise ValueError(f"{what} expression {spec!r} cannot be evaluated: "
                          f"{type(e).__name__}: {e}") from None
 
 
 class ContactSet:
     """Contact nodes, weights w, friction F and the scatters to contact space."""
 
-    def __init__(self, dm, coords, faces, clamped_rows, friction, template):
+    def __init__(self, dm, coords, faces, clamped_rows, friction, template, axis=2,
+                 point=(0.0, 0.0, 0.0), gap=None):
         comm = dm.getComm()
+        self.axis = axis                                  # k: n = +e_k, nu = -e_k
+        comps = [c for c in range(3) if c != axis] + [axis]   # contact space -> x, y, z
         nv = coords.shape[0]
         # per vertex: [on a contact face, -, lumped weight]; summed over ranks
         loc = np.zeros((nv, 3))
@@ -59,12 +71,12 @@ class ContactSet:
         #: n_d as the paper counts it (all nodes of the contact face, clamped ones too)
         self.n_paper = comm.tompi4py().allreduce(int(on_face.sum())) if comm.getSize() > 1 \
             else int(on_face.sum())
-        zdofs = rstart + 3 * np.flatnonzero(on_face) + 2
+        ndofs = rstart + 3 * np.flatnonzero(on_face) + axis
         active = on_face.copy()
-        active[np.flatnonzero(on_face)[np.isin(zdofs, clamped_rows)]] = False
+        active[np.flatnonzero(on_face)[np.isin(ndofs, clamped_rows)]] = False
         nodes = np.flatnonzero(active)
         self.local_size = nodes.size
-        self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in range(3)]
+        self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in comps]
         self.coordinates = owned_xyz[nodes]                      # (m_local, 3), for output
 
         self.template = self.create_vec(comm, template)
@@ -77,10 +89,21 @@ class ContactSet:
             err, F = str(e), None
         if F is not None and (np.any(~np.isfinite(F)) or np.any(F < 0.0)):
             err = f"friction {friction!r} must be finite and >= 0 on the contact face"
+        if gap is None:                                   # distance to the plane
+            G = owned_xyz[nodes, axis] - float(point[axis])
+        else:
+            try:
+                G = friction_values(gap, owned_xyz[nodes], what="gap")
+            except ValueError as e:
+                err, G = err or str(e), np.zeros(nodes.size)
+            if not np.all(np.isfinite(G)):
+                err = err or f"gap {gap!r} must be finite on the contact face"
         errs = [e for e in comm.tompi4py().allgather(err) if e]      # every rank raises
         if errs:
             raise ValueError(errs[0])
         self.F = self.vec(F)
+        self.gap = self.vec(G)                             # gap_j (the loops may shift it)
+        self.has_gap = self.gap.norm(PETSc.NormType.INFINITY) > 0.0
         self.has_friction = self.F.norm(PETSc.NormType.INFINITY) > 0.0
         self.zero = self.vec(0.0)
         self._work = self.vec()
@@ -110,7 +133,8 @@ class ContactSet:
         return v
 
     def gather(self, x, out, comp):
-        """out <- x[comp dofs of contact nodes], comp 0, 1 (tangential) or 2 (x3)."""
+        """out <- x[comp dofs of contact nodes], comp 0, 1 (tangential) or 2 (normal
+        axis k; u_nu = -x_k)."""
         self._scatters[comp].scatter(x, out, INSERT, FORWARD)
 
     def scatter(self, c, x, comp, mode=INSERT):
@@ -118,7 +142,7 @@ class ContactSet:
         self._scatters[comp].scatter(c, x, mode, REVERSE)
 
     def normal_displacement(self, x, out):
-        """u_nu = x . nu = -x3 at the contact nodes."""
+        """u_nu = x . nu = -x_k at the contact nodes."""
         self.gather(x, out, 2)
         out.scale(-1.0)
         return out

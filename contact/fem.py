@@ -171,6 +171,33 @@ def dirichlet_rows(dm, nv, constraints):
     return rows.astype(PETSc.IntType)
 
 
+def dirichlet_values(dm, nv, constraints):
+    """Global Vec u_D of prescribed displacements (0 off the constrained dofs).
+
+    constraints: [(faces (nf,4), components, values (3,))]; a dof shared by several parts
+    (or seen by several ranks) gets the mean of the values given to it."""
+    val, cnt = np.zeros((nv, 3)), np.zeros((nv, 3))
+    for faces, comps, values in constraints:
+        if faces.shape[0]:
+            v = np.unique(faces.ravel())[:, None]
+            c = np.asarray(comps)[None, :]
+            val[v, c] += np.asarray(values, dtype=float)[c]
+            cnt[v, c] += 1.0
+    gv, gc = local_to_global(dm, val.ravel()), local_to_global(dm, cnt.ravel())
+    a, n = gv.getArray(readonly=True).copy(), gc.getArray(readonly=True)
+    a[n > 0] /= n[n > 0]
+    gv.setArray(a)
+    gc.destroy()
+    return gv
+
+
+def face_normals(faces, coords):
+    """Unit normals (nf, 3) of quadrilateral faces (cross product of the diagonals)."""
+    X = coords[faces]
+    n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
 RIGID_MODES = ("translation x", "translation y", "translation z",
                "rotation about x", "rotation about y", "rotation about z")
 
@@ -195,9 +222,10 @@ def rigid_modes(xyz, x0, h):
     return M
 
 
-def free_rigid_modes(coordinates, rows, normal_points=None):
+def free_rigid_modes(coordinates, rows, normal_points=None, axis=2):
     """Rigid-body motions not fixed by the dofs `rows` (global, owned) and, if given, by
-    the normal (z) displacement at `normal_points` (owned contact nodes, (m, 3)).
+    the normal displacement (component `axis`) at `normal_points` (owned contact nodes,
+    (m, 3)).
 
     Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
     6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
@@ -210,7 +238,7 @@ def free_rigid_modes(coordinates, rows, normal_points=None):
     loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
     R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
     if normal_points is not None:
-        R = np.vstack([R, rigid_modes(normal_points, x0, h)[:, 2, :]])
+        R = np.vstack([R, rigid_modes(normal_points, x0, h)[:, axis, :]])
     lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
     Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
     names = set()
@@ -219,15 +247,16 @@ def free_rigid_modes(coordinates, rows, normal_points=None):
     return sorted(names, key=RIGID_MODES.index), Q, (x0, h)
 
 
-def load_lifts_off(coordinates, b, Q, frame, contact_points):
+def load_lifts_off(coordinates, b, Q, frame, contact_points, axis=2):
     """True when the only rigid motion the dirichlet parts leave free (Q of one column,
-    held by the contact alone) can move the body away from the foundation (u_z >= 0 at
-    every contact node) and the load b does positive work on it: no equilibrium."""
+    held by the contact alone) can move the body away from the foundation (u_k >= 0 at
+    every contact node, n = e_k) and the load b does positive work on it: no
+    equilibrium."""
     if Q.shape[1] != 1:
         return False            # several free motions: an LP we do not attempt
     comm = coordinates.getComm().tompi4py()
     xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
-    uz = rigid_modes(contact_points, *frame)[:, 2, :] @ Q[:, 0]
+    uz = rigid_modes(contact_points, *frame)[:, axis, :] @ Q[:, 0]
     lo = comm.allreduce(uz.min(initial=np.inf), op=MPI.MIN)
     hi = comm.allreduce(uz.max(initial=-np.inf), op=MPI.MAX)
     scale = max(abs(lo), abs(hi), 1e-300)

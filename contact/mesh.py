@@ -232,3 +232,22 @@ def label_parts(dm, parts):
         is_ = PETSc.IS().createGeneral(pts, comm=PETSc.COMM_SELF)
         dm.getLabel(name).setStratumIS(1, is_)
         is_.destroy()
+
+
+def labelled_faces(dm, conn, label_name):
+    """Faces (nf, 4) local vertex indices, cyclic order, of the local cells marked in the
+    cell label `label_name` (value = bitmask, bit k <=> face HEX_FACES[k]; see
+    contact.gmshio). conn rows are the cells cStart..cEnd. With overlap 0 each cell, and so
+    each face, is on one rank."""
+    if not dm.hasLabel(label_name):
+        raise MeshError(f"the mesh has no label '{label_name}'")
+    label = dm.getLabel(label_name)
+    cs, ce = dm.getHeightStratum(0)
+    out = [np.zeros((0, 4), dtype=np.intp)]
+    for v in label.getValueIS().getIndices():            # at most 63 distinct masks
+        pts = label.getStratumIS(int(v)).getIndices()
+        cells = pts[(pts >= cs) & (pts < ce)] - cs
+        for k in range(6):
+            if (int(v) >> k) & 1 and cells.size:
+                out.append(conn[cells][:, HEX_FACES[k]])
+    return np.concatenate(out).astype(np.intp)

@@ -30,7 +30,7 @@ def canonical_order(xyz):
 def gather_nodes(problem, x=None):
     """On rank 0: coordinates (n,3), displacement (n,3), cells (nc,8) in canonical order."""
     comm = problem.comm.tompi4py()
-    x = x if x is not None else problem.x
+    x = x if x is not None else problem.displacement()
     xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
     u = x.getArray(readonly=True).reshape(-1, 3)
     rstart = problem.coordinates.getOwnershipRange()[0] // 3
@@ -49,12 +49,16 @@ def gather_nodes(problem, x=None):
 
 
 def gather_contact(problem, x=None):
-    """On rank 0: contact coordinates, pressure g = l, slip |u_tau|, status (canonical order)."""
+    """On rank 0: contact coordinates, pressure g = l, slip |u_tau|, status (canonical
+    order): 0 open (g = 0), 1 stick, 2 slip. With load increments, slip and status are
+    those of the last increment (du_tau), as the quasi-static problem defines them."""
     comm = problem.comm.tompi4py()
     cs = problem.cs
     if cs is None or cs.size == 0:
         return None if comm.rank else {k: np.zeros((0, 3) if k == "coordinates" else 0)
                                        for k in ("coordinates", "pressure", "slip", "status")}
+    if x is None:
+        x = getattr(problem, "last_increment", None)
     f = res.contact_fields(problem, x)
     pressure = f["l"]
     slip = np.linalg.norm(f["u"][:, :2], axis=1)

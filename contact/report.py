@@ -42,8 +42,12 @@ def summary(problem, time_total):
         "coarse_runs": problem.coarse_runs,          # -c2f_levels: the coarse solves first
         "time_s": {"setup": problem.time_setup, "solve": problem.time_solve,
                    "total": time_total},
+        "loading": problem.loading,
+        "load_steps": problem.load_steps,
+        "steps": getattr(problem, "step_log", None) or [],
+        "skipped": problem.skipped,
         "energy": res.energy(problem),
-        "max_displacement": res.max_displacement(mpicomm, problem.x),
+        "max_displacement": res.max_displacement(mpicomm, problem.displacement()),
         "residuals": getattr(problem, "residuals", None) or res.residuals(problem),
         "converged": bool(problem.converged),
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
@@ -73,7 +77,10 @@ def print_summary(comm, s, outdir=None):
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
-             f"{s['converged']}"]
+             f"{s['converged']}",
+             f"loading: {s['loading']}"]
+    if s["skipped"]:
+        lines.append("skipped: " + "; ".join(s["skipped"]))
     if outdir:
         lines.append(f"results in {outdir}")
     PETSc.Sys.Print("\n".join(lines), comm=comm)

@@ -3,10 +3,11 @@
 All residuals use the discrete contact reaction R = A u - b (the nodal force of the
 foundation on the body: equilibrium is A u = b + R), so they check the solution
 independently of the multipliers the loops carried. At contact node j, weight w_j:
-  sigma_nu,j  = R_j . nu / w_j = -R_j3 / w_j       (nu = (0,0,-1))
+(components in the contact frame of contactset.py: 3 = the normal axis k, nu = -e_k)
+  sigma_nu,j  = R_j . nu / w_j = -R_j3 / w_j
   g_j         = -sigma_nu,j = R_j3 / w_j          (contact pressure)
   sigma_tau,j = (R_j1, R_j2) / w_j                 (friction traction)
-  u_nu,j      = -u_j3,  u_tau,j = (u_j1, u_j2)
+  u_nu,j      = -u_j3 - gap_j (the normal displacement beyond the gap), u_tau,j = (u_j1, u_j2)
 Relative residuals (0 for an exact discrete solution); pressures are scaled by
   max_j |g_j|, or by max_i |b_i| / max_j w_j (about the applied traction) if larger,
   so that a face carrying nothing is not judged by the rounding of its reactions:
@@ -62,7 +63,8 @@ def contact_fields(problem, x=None):
     R = x.duplicate()
     problem.A.mult(x, R)
     R.axpy(-1.0, problem.b)                      # R = A u - b
-    out = {"w": cs.local_array(cs.w), "F": cs.local_array(cs.F)}
+    out = {"w": cs.local_array(cs.w), "F": cs.local_array(cs.F),
+           "gap": cs.local_array(cs.gap)}
     tmp = cs.vec()
     u, r = np.zeros((cs.local_size, 3)), np.zeros((cs.local_size, 3))
     for c in range(3):
@@ -88,7 +90,7 @@ def residuals(problem, x=None, slip_tol=1e-6):
     w, F, u, R = f["w"], f["F"], f["u"], f["R"]
     g = R[:, 2] / w
     sig_t = R[:, :2] / w[:, None]
-    un = -u[:, 2]
+    un = -u[:, 2] - f["gap"]
     ut = np.linalg.norm(u[:, :2], axis=1)
     gmax = _max(comm, np.abs(g))
     # a pressure scale for when the contact carries (almost) nothing: the largest nodal

@@ -1,7 +1,7 @@
 """Scenes: YAML files giving the defaults of a run; the options database overrides them.
 
 Named options: -scene FILE, -nd N, -friction F, -young E, -poisson NU, -uzawa_r R,
--output_dir DIR, and the loop tolerances -apg_rtol, -uzawa_rtol, -fp_rtol.
+-load_steps N, -output_dir DIR, and the loop tolerances -apg_rtol, -uzawa_rtol, -fp_rtol.
 Any other scalar of the scene: -scene_<path with underscores>, e.g.
 -scene_boundary_top_traction_2 -40  or  -scene_mesh_upper_0 4.0.
 """
@@ -24,24 +24,28 @@ NAMED = {
     "apg_rtol": ("solver", "apg_rtol"),
     "uzawa_rtol": ("solver", "uzawa_rtol"),
     "fp_rtol": ("solver", "fp_rtol"),
+    "load_steps": ("loading", "steps"),
 }
 
 DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                              "runs", "paper_beam.yaml")
 
-PART_TYPES = ("dirichlet", "contact", "traction")
+PART_TYPES = ("dirichlet", "contact", "traction", "symmetry")
+MESH_TYPES = ("box", "file", "gmsh")
 
 #: the keys a scene may have, per section (anything else is a typo or unsupported)
 SCHEMA = {
     None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
-           "solver"),
-    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file"),
+           "solver", "loading"),
+    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters"),
     "material": ("young", "poisson"),
-    "contact": ("friction",),
+    "contact": ("friction", "foundation", "gap"),
+    "foundation": ("point", "normal"),
+    "loading": ("steps",),
     "solver": ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol", "ssn_rtol", "apg_max_it",
                "uzawa_max_it", "fp_max_it", "ssn_max_it", "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
-    "part": ("plane", "type", "traction", "components"),
+    "part": ("plane", "physical", "type", "traction", "components", "displacement"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -104,7 +108,7 @@ def scalars(d, prefix=()):
 
 
 #: scene values that may be an expression in x, y, z instead of a number
-EXPRESSIONS = (("contact", "friction"),)
+EXPRESSIONS = (("contact", "friction"), ("contact", "gap"))
 
 
 def _convert(old, text, name, path=()):
@@ -175,7 +179,7 @@ def _numbers(value, n, what):
 def validate(scene):
     """Check the keys and values a run needs; raise SceneError naming the first bad one."""
     _check_keys(scene, None, "the scene")
-    for section in ("mesh", "material", "contact", "solver"):
+    for section in ("mesh", "material", "contact", "solver", "loading"):
         if section in scene:
             _check_keys(scene[section], section, f"section '{section}'")
     for key in ("mesh", "material", "boundary"):
@@ -183,15 +187,20 @@ def validate(scene):
             raise SceneError(f"scene has no '{key}' section")
     mesh = scene["mesh"]
     kind = mesh.setdefault("type", "box")
-    if kind not in ("box", "file"):
-        raise SceneError(f"mesh type {kind!r} is not supported (box or file)")
+    if kind not in MESH_TYPES:
+        raise SceneError(f"mesh type {kind!r} is not supported ({', '.join(MESH_TYPES)})")
     nd = mesh.get("nd", 1)
     if not isinstance(nd, int) or isinstance(nd, bool) or nd < 1:
         raise SceneError(f"nd must be an integer >= 1, got {nd!r}")
-    if kind == "file":
+    if kind in ("file", "gmsh"):
         if not isinstance(mesh.get("file"), str):
-            raise SceneError("mesh.file must name a mesh file (gmsh .msh, ExodusII, ...)")
+            raise SceneError(f"mesh.file must name a mesh file ({'.geo or .msh' if kind == 'gmsh' else 'gmsh .msh, ExodusII, ...'})")
         mesh.setdefault("nd", 1)
+        params = mesh.setdefault("parameters", {})
+        if not isinstance(params, dict) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in params.values()):
+            raise SceneError(f"mesh.parameters must map names to finite numbers, got {params!r}")
     else:
         _box(mesh)
     _material(scene["material"])
@@ -225,6 +234,10 @@ def _rest(scene):
     for k, v in (("apg_rtol", 1e-8), ("uzawa_rtol", 1e-6), ("fp_rtol", 1e-6)):
         _positive(sol.setdefault(k, v), k)
     _numbers(scene.setdefault("body_force", [0.0, 0.0, 0.0]), 3, "body_force")
+    steps = scene.setdefault("loading", {}).setdefault("steps", 1)
+    if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
+        raise SceneError(f"loading.steps must be an integer >= 1, got {steps!r}")
+    _foundation(scene["contact"] if isinstance(scene.get("contact"), dict) else {})
     fr = scene.setdefault("contact", {}).setdefault("friction", 0.0)
     if isinstance(fr, bool) or not isinstance(fr, (int, float, str)):
         raise SceneError(f"friction must be a number or an expression in x, y, z, got {fr!r}")
@@ -238,18 +251,60 @@ def _rest(scene):
         t = part.get("type")
         if t not in PART_TYPES:
             raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got {t!r}")
-        plane = part.get("plane")
-        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES and
-                isinstance(plane[1], (int, float)) and not isinstance(plane[1], bool) and
-                math.isfinite(plane[1])):
-            raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, finite value], "
-                             f"got {plane!r}")
+        if ("plane" in part) == ("physical" in part):
+            raise SceneError(f"boundary part {name!r}: give either plane: [x|y|z, value] or "
+                             f"physical: <gmsh physical group name>")
+        if "physical" in part:
+            if scene["mesh"]["type"] != "gmsh":
+                raise SceneError(f"boundary part {name!r}: physical names need a gmsh mesh "
+                                 f"(mesh.type: gmsh), not {scene['mesh']['type']!r}")
+            if not isinstance(part["physical"], (str, int)) or isinstance(part["physical"], bool):
+                raise SceneError(f"boundary part {name!r}: physical must be a group name")
+            part["physical"] = str(part["physical"])
+        else:
+            plane = part.get("plane")
+            if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES and
+                    isinstance(plane[1], (int, float)) and not isinstance(plane[1], bool) and
+                    math.isfinite(plane[1])):
+                raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, finite "
+                                 f"value], got {plane!r}")
         if t == "traction":
             _numbers(part.get("traction"), 3, f"boundary part {name!r}: traction")
         if t == "dirichlet":
             comps = part.setdefault("components", ["x", "y", "z"])
-            if not all(c in AXES for c in comps):
+            if not (isinstance(comps, list) and comps and all(c in AXES for c in comps)):
                 raise SceneError(f"boundary part {name!r}: components must be among x, y, z")
-    if not any(p["type"] == "dirichlet" for p in parts.values()):
-        raise SceneError("scene has no dirichlet (clamped) part: rigid-body motion is not "
-                         "excluded")
+            _numbers(part.setdefault("displacement", [0.0, 0.0, 0.0]), 3,
+                     f"boundary part {name!r}: displacement")
+        elif "displacement" in part or "components" in part:
+            raise SceneError(f"boundary part {name!r}: displacement/components belong to "
+                             f"dirichlet parts, not {t}")
+    if not any(p["type"] in ("dirichlet", "symmetry", "contact") for p in parts.values()):
+        raise SceneError("scene has no dirichlet (clamped), symmetry or contact part: "
+                         "rigid-body motion is not excluded")
+
+
+def _foundation(contact):
+    """contact.foundation: the plane through `point` with unit normal `normal` = +e_k
+    (pointing into the body); defaults p = 0, n = e_z (the paper's)."""
+    fd = contact.setdefault("foundation", {})
+    _check_keys(fd, "foundation", "contact.foundation")
+    _numbers(fd.setdefault("point", [0.0, 0.0, 0.0]), 3, "contact.foundation.point")
+    n = _numbers(fd.setdefault("normal", [0.0, 0.0, 1.0]), 3, "contact.foundation.normal")
+    norm = math.sqrt(sum(c * c for c in n))
+    k = max(range(3), key=lambda i: abs(n[i]))
+    if norm == 0 or n[k] <= 0 or any(abs(n[i]) > 1e-12 * norm for i in range(3) if i != k):
+        raise SceneError(f"contact.foundation.normal must point along +x, +y or +z (into "
+                         f"the body; other directions are not supported yet: rotate the "
+                         f"mesh), got {n!r}")
+    gap = contact.get("gap")
+    if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float, str))
+                            or (isinstance(gap, float) and not math.isfinite(gap))):
+        raise SceneError(f"contact.gap must be a number or an expression in x, y, z, "
+                         f"got {gap!r}")
+
+
+def foundation_axis(scene):
+    """k of the foundation's normal n = +e_k (validated by `validate`)."""
+    n = scene.get("contact", {}).get("foundation", {}).get("normal", [0.0, 0.0, 1.0])
+    return max(range(3), key=lambda i: abs(n[i]))

@@ -1,8 +1,10 @@
 """Uzawa iterations on the modified Lagrangian (given friction g).
 
-M(v, l) = J_g(v) + 1/(2r) sum_j w_j [((l_j + r v_j.nu)^+)^2 - l_j^2]
+M(v, l) = J_g(v) + 1/(2r) sum_j w_j [((l_j + r (v_nu,j - gap_j))^+)^2 - l_j^2]
     u^{k+1} = argmin_v M(v, l^k)            (inner solver: APG or SSN, from u^k)
-    l^{k+1} = (l^k + r u_nu^{k+1})^+ ,  u_nu = -u3
+    l^{k+1} = (l^k + r (u_nu^{k+1} - gap))^+ ,  u_nu = -u_k (contactset.py)
+The inner solvers see only l + r v_nu: they are handed the shifted multiplier
+l - r gap (gap = 0 for the paper's scene, where nothing is shifted).
 Stop when ||l^{k+1} - l^k|| / ||l^{k+1}|| < rtol (both zero: no contact, converged).
 Options (prefix -uzawa_):
   -uzawa_inner apg|ssn      inner solver: accelerated proximal gradient (the paper's,
@@ -39,6 +41,7 @@ class Uzawa(Loop):
         cs = inner.cs
         self.lam = cs.vec()
         self.l_new, self.un = cs.vec(), cs.vec()
+        self.l_shift = cs.vec()
 
     def set_from_options(self):
         super().set_from_options()
@@ -62,9 +65,13 @@ class Uzawa(Loop):
             if not self.warm_start:
                 x.set(0.0)
             inner.loose_rtol = ctl.tolerance()
-            inner.solve(x, l, lam)
+            ls = l
+            if cs.has_gap:
+                ls = self.l_shift
+                ls.waxpy(-inner.r, cs.gap, l)             # l - r gap
+            inner.solve(x, ls, lam)
             cs.normal_displacement(x, self.un)
-            self.l_new.waxpy(inner.r, self.un, l)         # l + r u_nu
+            self.l_new.waxpy(inner.r, self.un, ls)        # l + r (u_nu - gap)
             self.l_new.pointwiseMax(self.l_new, cs.zero)
             l.axpy(-1.0, self.l_new)                       # l <- l - l_new (the change)
             change, norm = l.norm(), self.l_new.norm()

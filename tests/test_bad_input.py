@@ -135,7 +135,7 @@ CASES = [
     ("friction-expression-inf", lambda t: ["-friction", "x/0"], "must be finite"),
     ("friction-expression-syntax", lambda t: ["-friction", "x+"], "cannot be evaluated"),
     ("no-clamped-part", lambda t: ["-scene", scene_file(t, _del("boundary", "clamped"))],
-     "no dirichlet"),
+     "rigid-body motion free"),
     ("rigid-motion-free", lambda t: ["-scene", scene_file(
         t, _set(["z"], "boundary", "clamped", "components"))], "rigid-body motion free"),
     ("missing-part", lambda t: ["-scene", scene_file(

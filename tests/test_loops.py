@@ -5,6 +5,7 @@ from petsc4py import PETSc
 
 from contact import scene as scenes
 from contact.loop import ConvergenceError
+from contact.problem import ContactProblem
 
 
 def test_apg_limit_raises_naming_the_loop(comm):
@@ -35,9 +36,13 @@ def test_command_line_overrides_scene(comm):
     assert pr.apg.rtol == 1e-5
 
 
-def test_no_clamped_part_is_rejected():
+def test_no_clamped_part_is_rejected(comm):
     sc = paper_scene(nd=1)
     del sc["boundary"]["clamped"]
+    scenes.validate(sc)                  # the contact may hold it: the problem decides
+    with pytest.raises(scenes.SceneError, match="rigid-body motion free"):
+        ContactProblem(sc, comm)
+    del sc["boundary"]["contact"]
     with pytest.raises(scenes.SceneError, match="no dirichlet"):
         scenes.validate(sc)
 
