@@ -10,13 +10,13 @@ NP       ?= 2
 ARGS     ?= -nd 10 -fp_monitor
 DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
             python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
-PIP_PKGS := pymetis clarabel
+PIP_PKGS := pymetis clarabel gmsh
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 
-.PHONY: install run run2 test test1 test2 bench report stability clean help
+.PHONY: install run run2 test test1 test2 bench report stability validate clean help
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
@@ -27,6 +27,7 @@ help:
 	@echo "make bench                      speed benchmarks -> runs/results/bench.md"
 	@echo "make report                     error against run time -> runs/results/report.md"
 	@echo "make stability                  stability suite (edge cases) -> runs/results/stability.md"
+	@echo "make validate [VALIDATE_ARGS=--quick]  Hertz / Spence validation -> runs/results/validation.md"
 
 install: $(STAMP)
 
@@ -48,7 +49,7 @@ $(STAMP): setup.py Makefile
 	  test -n "$$d" || { echo "petsc4py not found"; exit 1; }; \
 	  echo "$$d" > $$site/debian_petsc4py.pth; \
 	fi
-	@$(PY) -c 'import pymetis, clarabel' 2>/dev/null || $(PY) -m pip install -q $(PIP_PKGS)
+	@$(PY) -c 'import pymetis, clarabel, gmsh' 2>/dev/null || $(PY) -m pip install -q $(PIP_PKGS)
 	@$(PY) -m pip install -q --no-deps --no-build-isolation -e .
 	@$(PY) -c 'import petsc4py, mpi4py, h5py, numpy; print("ok: petsc4py", petsc4py.__version__, "numpy", numpy.__version__)'
 	@touch $(STAMP)
@@ -75,6 +76,9 @@ report: install
 
 stability: install
 	$(PY) runs/stability.py $(STABILITY_ARGS)
+
+validate: install
+	$(PY) runs/validate.py $(VALIDATE_ARGS)
 
 clean:
 	rm -rf runs/out .pytest_cache

@@ -21,6 +21,8 @@ Scene and problem:
   -uzawa_r R             parameter r of the modified Lagrangian
   -scene_<path> VALUE    any other scalar of the scene, e.g. -scene_boundary_top_traction_2 -40
   -output_dir DIR        results (default runs/out/<scene>-nd<N>/)
+  -output_formats LIST   h5,xdmf,json (default all), or none
+  -load_steps N          quasi-static load increments (default 1: the static problem)
 Loops (prefix P = fp_, uzawa_, apg_, ssn_):
   -P_rtol TOL  -P_max_it N  -P_monitor  -P_monitor_stride N  -P_converged_reason
   -P_error_if_not_converged false      go on (and report converged: false) at the limit
@@ -70,14 +72,19 @@ def run(comm=None):
     options.check(opts, sc)
     outdir = opts.getString("output_dir",
                             os.path.join("runs", "out", f"{sc['name']}-nd{sc['mesh']['nd']}"))
-    output.prepare_dir(comm.tompi4py(), outdir)
+    formats = output.parse_formats(opts.getString("output_formats", ",".join(output.FORMATS)))
+    if formats:
+        output.prepare_dir(comm.tompi4py(), outdir)
     problem = ContactProblem(sc, comm).solve()
+    if len(formats) < len(output.FORMATS):
+        problem.skipped.append("output files " + ", ".join(
+            f for f in output.FORMATS if f not in formats) + " (-output_formats)")
     s = report.summary(problem, time.perf_counter() - t0)
     stage = PETSc.Log.Stage("Output")
     stage.push()
-    output.write_results(problem, outdir, s)
+    output.write_results(problem, outdir, s, formats)
     stage.pop()
-    report.print_summary(comm, s, outdir)
+    report.print_summary(comm, s, outdir if formats else None)
     options.warn_unused(comm)
     return s
 

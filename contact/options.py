@@ -23,7 +23,7 @@ from .uzawa import Uzawa
 #: options of the entry point and of the problem set-up
 GENERAL = ("scene", "output_dir", "debug", "help", "solver_mode", "c2f_levels",
            "dm_vec_type", "dm_mat_type", "vec_type", "mat_type", "petscpartitioner_type",
-           "check_tol")
+           "check_tol", "output_formats", "gmsh_verbose")
 #: PETSc's own options that look like ours to a spelling check
 PETSC_GLOBAL = ("log_view", "options_left", "malloc_debug", "malloc_dump", "info",
                 "use_gpu_aware_mpi", "device_enable", "log_trace")

@@ -167,21 +167,44 @@ def prepare_dir(comm, outdir):
         raise OSError(err)
 
 
-def write_results(problem, outdir, summary):
-    """All three files; collective, rank 0 writes."""
+FORMATS = ("h5", "xdmf", "json")
+
+
+def parse_formats(text):
+    """-output_formats h5,xdmf,json (default all; 'none': no file): a tuple of FORMATS."""
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    if kinds == ("none",):
+        return ()
+    bad = [k for k in kinds if k not in FORMATS]
+    if bad:
+        raise ValueError(f"-output_formats: unknown format {bad[0]!r} (choose among "
+                         f"{', '.join(FORMATS)}, or none)")
+    if "xdmf" in kinds and "h5" not in kinds:
+        raise ValueError("-output_formats: xdmf describes the h5 file; ask for h5 too")
+    return kinds
+
+
+def write_results(problem, outdir, summary, formats=FORMATS):
+    """The files of `formats` (solution.h5, solution.xdmf, summary.json); collective,
+    rank 0 writes; nothing is gathered for files not asked for."""
     comm = problem.comm.tompi4py()
-    nodes = gather_nodes(problem)
-    contact = gather_contact(problem)
+    if not formats:
+        return
+    nodes = gather_nodes(problem) if "h5" in formats else None
+    contact = gather_contact(problem) if "h5" in formats else None
     err = None
     if comm.rank == 0:
-        h5, xdmf, js = (os.path.join(outdir, f) for f in
-                        ("solution.h5", "solution.xdmf", "summary.json"))
+        names = {"h5": "solution.h5", "xdmf": "solution.xdmf", "json": "summary.json"}
+        paths = {k: os.path.join(outdir, names[k]) for k in FORMATS if k in formats}
         try:
-            with Staged(h5, xdmf, js) as tmp:
-                write_hdf5(tmp[h5], nodes, contact)
-                write_xdmf(tmp[xdmf], "solution.h5", nodes[0].shape[0], nodes[2].shape[0],
-                           contact["pressure"].shape[0])
-                _write_text(tmp[js], json.dumps(summary, indent=2) + "\n")
+            with Staged(*paths.values()) as tmp:
+                if "h5" in paths:
+                    write_hdf5(tmp[paths["h5"]], nodes, contact)
+                if "xdmf" in paths:
+                    write_xdmf(tmp[paths["xdmf"]], "solution.h5", nodes[0].shape[0],
+                               nodes[2].shape[0], contact["pressure"].shape[0])
+                if "json" in paths:
+                    _write_text(tmp[paths["json"]], json.dumps(summary, indent=2) + "\n")
         except OSError as e:
             err = f"cannot write results to {outdir}: {e.strerror or e}"
     err = comm.bcast(err, root=0)

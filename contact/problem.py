@@ -178,6 +178,10 @@ class ContactProblem:
                              "prescribe it away from the contact part (or press through "
                              "contact.gap)")
 
+    def normal_force(self):
+        """sum_j l_j w_j: the total normal force of the foundation on the contact part."""
+        return self.l.dot(self.cs.w) if self.cs is not None and self.l is not None else 0.0
+
     def displacement(self):
         """u = x + u_D: the displacement the run computed (x is u - u_D)."""
         if self.u_D is None:
@@ -291,6 +295,7 @@ class ContactProblem:
             if k == n:
                 self.last_increment = self.x.copy()      # the slip of the last increment
             self.step_log.append({"step": k, "load_factor": k / n,
+                                  "normal_force": self.normal_force(),
                                   "iterations": self.iterations(single=True),
                                   "residuals": dict(self.residuals)})
             if cs.has_friction:

@@ -42,6 +42,7 @@ def summary(problem, time_total):
         "coarse_runs": problem.coarse_runs,          # -c2f_levels: the coarse solves first
         "time_s": {"setup": problem.time_setup, "solve": problem.time_solve,
                    "total": time_total},
+        "normal_force": problem.normal_force(),
         "loading": problem.loading,
         "load_steps": problem.load_steps,
         "steps": getattr(problem, "step_log", None) or [],
