@@ -7,6 +7,12 @@ Every physical surface group becomes a DMLabel "physical:<name>" on the cells wh
 is the bitmask of the cell's faces in the group (bit k <=> `mesh.HEX_FACES[k]`);
 `mesh.labelled_faces` turns it back into faces after distribution.
 
+`parameters` are set as gmsh parser numbers before the file is merged (gmsh.merge, not
+gmsh.open, which clears them), so they override `DefineConstant[ nd = {...} ];` (and
+`If (!Exists(nd)) ... EndIf`), not plain `nd = 4;` assignments (reported as an error).
+Cells are taken as gmsh orders them: an inverted hexahedron in a .msh stays inverted
+(`mesh.check_cells` reports it).
+
 gmsh is imported only here, and only on rank 0, when a scene uses a gmsh mesh.
 """
 import os
