@@ -34,6 +34,7 @@ sys.path.insert(0, HERE)
 import contact_theory as th  # noqa: E402
 
 from contact import residuals as res, scene as scenes  # noqa: E402
+from contact.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 
 SCENE = os.path.join(HERE, "scenes", "hertz.yaml")
@@ -130,7 +131,11 @@ def frictionless_study(nds, d=0.04, nu=0.3):
 
 
 def curve_study(nd, steps, d=0.04, nu=0.3):
-    pr, t = solve(hertz_scene(nd, nu=nu, d=d, steps=steps))
+    try:
+        pr, t = solve(hertz_scene(nd, nu=nu, d=d, steps=steps))
+    except (ConvergenceError, ResidualCheckError) as e:
+        PETSc.Sys.Print(f"curve nd={nd}: FAILED: {e}")
+        return str(e), 0.0
     pts = []
     for e in pr.step_log:
         P = 4.0 * e["normal_force"]
@@ -144,7 +149,12 @@ def spence_study(nd, steps, cases, d=0.04):
     for nu, F in cases:
         row = {"nu": nu, "F": F, "beta_over_F": th.dundurs_beta_rigid(nu) / F}
         for kind, n in (("incremental", steps), ("static", 1)):
-            pr, t = solve(hertz_scene(nd, nu=nu, friction=F, steps=n, d=d))
+            try:
+                pr, t = solve(hertz_scene(nd, nu=nu, friction=F, steps=n, d=d))
+            except (ConvergenceError, ResidualCheckError) as e:
+                PETSc.Sys.Print(f"spence nu={nu} F={F} {kind}: FAILED: {e}")
+                row[kind] = str(e)
+                continue
             a = analyse(pr, nu, F)
             row[kind] = a
             row[kind + "_time"] = t
@@ -188,7 +198,7 @@ def plots(rows, curve, spence, outdir):
     fig.tight_layout()
     fig.savefig(os.path.join(outdir, "hertz_pressure.png"), dpi=120)
     plt.close(fig)
-    if curve:
+    if curve and not isinstance(curve, str):
         dl, P, PH = np.array(curve).T
         fig, ax = plt.subplots(figsize=(6, 4))
         ax.plot(dl, P, "o", label="computed (load increments)")
@@ -204,6 +214,9 @@ def plots(rows, curve, spence, outdir):
         fig, axes = plt.subplots(1, len(spence), figsize=(4 * len(spence), 3.6))
         for ax, row in zip(np.atleast_1d(axes), spence):
             a = row["incremental"]
+            if isinstance(a, str):
+                ax.set_title(f"nu={row['nu']}, F={row['F']}: failed")
+                continue
             ax.scatter(a["r"], a["p"], c=a["status"], cmap="coolwarm", s=8, vmin=0, vmax=2)
             ax.axvline(a["c_area"], color="k", lw=0.8)
             ax.set_title(f"nu={row['nu']}, F={row['F']}: c/a={a['c_over_a']:.2f}")
@@ -255,7 +268,10 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
                  f"{(a['delta'] - 0.04) / 0.04:.2%} | {a['P_hertz']:.5e} | {eP:+.2%} | "
                  f"{a['time']:.1f} |")
     L += ["", "![pressure](validation/hertz_pressure.png)", ""]
-    if curve:
+    if isinstance(curve, str):
+        L += [f"Force-indentation from load increments (nd = {args.curve_nd}, "
+              f"{args.curve_steps} increments): **failed**: {curve}", ""]
+    elif curve:
         L += [f"Force-indentation from one run with {len(curve)} load increments of the "
               f"top displacement (nd = {args.curve_nd}, {curve_t:.0f} s):", "",
               "| delta | P computed | P Hertz(delta) | err |", "|---:|---:|---:|---:|"]
@@ -284,14 +300,23 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
               "| nu | F | beta/F | c/a incremental | c/a one-step static | c/a BEM | "
               "Spence | a (area) | stick nodes | max residual | time incr., s |",
               "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        fails = []
         for row in spence:
             inc, st = row["incremental"], row["static"]
             b = bem.get((row["nu"], row["F"]), "-")
             b = f"{b:.3f}" if isinstance(b, float) else b
+            ca = lambda x: "failed" if isinstance(x, str) else f"{x['c_over_a']:.3f}"
+            fails += [f"nu = {row['nu']}, F = {row['F']}, {k}: {x}"
+                      for k, x in (("incremental", inc), ("static", st)) if isinstance(x, str)]
+            ok = not isinstance(inc, str)
             L.append(f"| {row['nu']} | {row['F']} | {row['beta_over_F']:.3f} | "
-                     f"{inc['c_over_a']:.3f} | {st['c_over_a']:.3f} | {b} | - | "
-                     f"{inc['a_area']:.4f} | {inc['stick_nodes']} | "
-                     f"{row['incremental_residual']:.1e} | {row['incremental_time']:.0f} |")
+                     f"{ca(inc)} | {ca(st)} | {b} | - | "
+                     f"{inc['a_area'] if ok else float('nan'):.4f} | "
+                     f"{inc['stick_nodes'] if ok else '-'} | "
+                     f"{row.get('incremental_residual', float('nan')):.1e} | "
+                     f"{row.get('incremental_time', 0.0):.0f} |")
+        if fails:
+            L += ["", "Failures (the solver's own error):", ""] + [f"- {f}" for f in fails]
         L += ["", "![stick zones](validation/spence_stick_zones.png)", ""]
     with open(path, "w") as f:
         f.write("\n".join(L) + "\n")
@@ -305,6 +330,8 @@ def main():
     ap.add_argument("--spence-nd", type=int, default=6)
     ap.add_argument("--spence-steps", type=int, default=8)
     ap.add_argument("--quick", action="store_true", help="small meshes (a smoke run)")
+    ap.add_argument("--bem", action="store_true",
+                    help="also run the half-space BEM reference (runs/halfspace_bem.py)")
     ap.add_argument("--out", default=os.path.join(OUT, "validation.md"))
     args = ap.parse_args()
     if args.quick:
@@ -314,7 +341,7 @@ def main():
     curve, curve_t = curve_study(args.curve_nd, args.curve_steps) if args.curve_steps else ([], 0)
     cases = [(0.3, 0.2), (0.3, 0.5), (0.0, 0.2), (0.0, 0.5)]
     spence = spence_study(args.spence_nd, args.spence_steps, cases)
-    bem = bem_reference(cases) if PETSc.COMM_WORLD.getRank() == 0 else {}
+    bem = bem_reference(cases) if args.bem and PETSc.COMM_WORLD.getRank() == 0 else {}
     if PETSc.COMM_WORLD.getRank() == 0:
         plots(rows, curve, spence, os.path.join(os.path.dirname(args.out), "validation"))
         write_report(args.out, args, rows, curve, curve_t, spence, bem,
