@@ -79,6 +79,7 @@ stability: install
 
 validate: install
 	$(PY) runs/validate.py $(VALIDATE_ARGS)
+	$(PY) runs/validate_block.py
 
 clean:
 	rm -rf runs/out .pytest_cache

@@ -64,6 +64,7 @@ class SemismoothNewton(Loop):
         self.ksp_iterations = 0
         self.line_search_cuts = 0
         self.n_stick = self.n_slip = 0
+        self.nullspace = None        # PETSc.NullSpace of K when A leaves rigid motions free
         v = b.duplicate()                # the DM's Vec type, not the Mat's default
         self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt = \
             (v.duplicate() for _ in range(6))
@@ -227,6 +228,9 @@ class SemismoothNewton(Loop):
             grad, p = self._gradient(x, self.Ax, l)
             K, rhs = self._system(x, grad, p, lam_a)
             _EV_KSP.begin()
+            if self.nullspace is not None:       # consistent singular system
+                K.setNullSpace(self.nullspace)
+                self.nullspace.remove(rhs)
             self.ksp.setOperators(K)
             same = self._same_sets()
             self.ksp.getPC().setReusePreconditioner(same)

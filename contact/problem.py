@@ -19,9 +19,11 @@ from .contactset import ContactSet
 from .fixedpoint import FixedPoint
 from .loop import ResidualCheckError
 from .newton import SemismoothNewton
-from .scene import AXES, SceneError, foundation_axis
+from .scene import AXES, SceneError, foundation_axis, ramp_factor
 from .uzawa import INNER, Uzawa
 
+
+DEFAULT_RAMP = (0.0, 1.0)
 
 #: option presets; "fast" = semismooth Newton inner solver, warm starts, inexact loops
 SOLVER_MODES = {
@@ -123,27 +125,52 @@ class ContactProblem:
         mesh.label_parts(dm, parts)
         mat = sc["material"]
         self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"])
-        tractions = [(parts[n], p["traction"]) for n, p in bnd.items()
-                     if p["type"] == "traction"]
         body_force = sc.get("body_force", [0, 0, 0])
         if not any(body_force):
             self.skipped.append("body-force assembly (no body force)")
-        self.b = fem.load_vector(dm, conn, coords, tractions, body_force)
-        constraints = [(parts[n], [AXES[c] for c in p["components"]],
-                        p.get("displacement", [0.0, 0.0, 0.0]))
-                       for n, p in bnd.items() if p["type"] == "dirichlet"]
-        constraints += [(parts[n], [self._symmetry_axis(n, parts[n], coords)], [0.0] * 3)
-                        for n, p in bnd.items() if p["type"] == "symmetry"]
+        named = [(n, (parts[n], [AXES[c] for c in p["components"]],
+                      p.get("displacement", [0.0, 0.0, 0.0])))
+                 for n, p in bnd.items() if p["type"] == "dirichlet"]
+        named += [(n, (parts[n], [self._symmetry_axis(n, parts[n], coords)], [0.0] * 3))
+                  for n, p in bnd.items() if p["type"] == "symmetry"]
+        constraints = [c for _, c in named]
         self.clamped = fem.dirichlet_rows(dm, coords.shape[0], [c[:2] for c in constraints])
         self.coordinates = fem.global_coordinates(dm, coords)
         self.u_D = None                          # prescribed displacement (None: all zero)
         if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in constraints):
             self.u_D = fem.dirichlet_values(dm, coords.shape[0], constraints)
-            lift = self.b.duplicate()
-            self.A.mult(self.u_D, lift)
-            self.b.axpy(-1.0, lift)              # b - A u_D: solve for u - u_D (0 there)
-            lift.destroy()
+        # load groups: the parts sharing a ramp [t0, t1] (loading schedule), each with its
+        # load b_g = f_g - A u_D,g (u_D,g: u_D with the other groups' values set to 0, so
+        # that sum_g u_D,g = u_D); b = sum_g b_g is the full load
+        ramps = sorted({tuple(p.get("ramp", DEFAULT_RAMP)) for p in bnd.values()
+                        if p["type"] in ("traction", "dirichlet")} | {DEFAULT_RAMP})
+        self.load_groups = []
+        for ramp in ramps:
+            mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
+            bg = fem.load_vector(dm, conn, coords,
+                                 [(parts[n], bnd[n]["traction"]) for n in sorted(mine)
+                                  if bnd[n]["type"] == "traction"],
+                                 body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0])
+            masked = [(f, c, v if n in mine else [0.0] * 3) for n, (f, c, v) in named]
+            if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in masked):
+                u_g, lift = fem.dirichlet_values(dm, coords.shape[0], masked), bg.duplicate()
+                self.A.mult(u_g, lift)
+                bg.axpy(-1.0, lift)              # b_g - A u_D,g: solve for u - u_D
+                u_g.destroy()
+                lift.destroy()
+            self.load_groups.append((ramp, sorted(mine), bg))
+        self.b = self.load_groups[0][2].duplicate()
+        self.b.set(0.0)
+        for _, _, bg in self.load_groups:
+            self.b.axpy(1.0, bg)
         self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
+        zeros = np.zeros(len(self.clamped))
+        for _, _, bg in self.load_groups:        # the eliminated rows carry no load
+            bg.setValues(self.clamped, zeros)
+            bg.assemble()
+        if len(self.load_groups) == 1:           # one group: b itself
+            self.load_groups[0][2].destroy()
+            self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates)
         self.n_dofs = self.A.getSize()[0]
 
@@ -192,21 +219,66 @@ class ContactProblem:
 
     def _check_rigid_motion(self):
         """SceneError when the dirichlet parts and the foundation leave a rigid-body motion
-        free, or when only the foundation holds the body and the load pulls it away."""
+        free, or when only the foundation holds the body and the load pulls it away.
+
+        Motions tangential to the foundation (translations along it, rotation about its
+        normal) may be left to friction (F > 0): the body is then `friction_held`, and the
+        statics of a rigid block decide (`_check_friction_statics`)."""
+        self.friction_held = None
         cpts = self.cs.coordinates if self.cs is not None else None
-        free, _, _ = fem.free_rigid_modes(self.coordinates, self.clamped, cpts, self.axis)
+        free, Q, frame = fem.free_rigid_modes(self.coordinates, self.clamped, cpts, self.axis)
         if free:
-            held = " (the foundation holds only the normal direction)" if cpts is not None \
-                else ""
-            raise SceneError("the dirichlet parts leave rigid-body motion free ("
-                             + ", ".join(free) + f"){held}: no unique solution; clamp "
-                             "more components or parts")
+            a = "xyz"[self.axis]
+            tangential = {f"translation {c}" for c in "xyz" if c != a} | {f"rotation about {a}"}
+            if cpts is not None and set(free) <= tangential and self.cs.has_friction:
+                self.friction_held = (Q, frame)
+                self._check_friction_statics(free)
+            else:
+                held = ""
+                if cpts is not None:
+                    held = " (the foundation holds only the normal direction" + (
+                        "; friction could hold the tangential ones, but F = 0)"
+                        if set(free) <= tangential else ")")
+                raise SceneError("the dirichlet parts leave rigid-body motion free ("
+                                 + ", ".join(free) + f"){held}: no unique solution; clamp "
+                                 "more components or parts")
         if cpts is None:
             return
         free, Q, frame = fem.free_rigid_modes(self.coordinates, self.clamped)
         if free and fem.load_lifts_off(self.coordinates, self.b, Q, frame, cpts, self.axis):
             raise SceneError("only the foundation holds the body (" + ", ".join(free) +
                              " free otherwise) and the load pulls it away: no equilibrium")
+
+    def _check_friction_statics(self, free):
+        """Statics of a rigid block, at every load step: where nothing but the foundation
+        holds the body (normal translation free without it), the tangential load resultant
+        T along the free translations must not exceed F_max N, N the normal load pressing
+        the body on the foundation; otherwise the body slides (no static equilibrium).
+        Necessary, not sufficient (moments about the normal are left to the solver).
+        -statics_check 0 skips this test."""
+        if not PETSc.Options().getBool("statics_check", True):
+            return
+        a = "xyz"[self.axis]
+        if f"translation {a}" not in fem.free_rigid_modes(self.coordinates, self.clamped)[0]:
+            return                               # a dirichlet part takes normal load: N unknown
+        dirs = [i for i in range(3) if f"translation {'xyz'[i]}" in free]
+        if not dirs:
+            return
+        mpi = self.comm.tompi4py()
+        res = [mpi.allreduce(bg.getArray(readonly=True).reshape(-1, 3).sum(axis=0))
+               for _, _, bg in self.load_groups]
+        fmax = self.cs.F.max()[1]
+        n = int(self.scene.get("loading", {}).get("steps", 1))
+        for k in range(1, n + 1):
+            t = k / n
+            R = sum(ramp_factor(r, t) * rg for (r, _, _), rg in zip(self.load_groups, res))
+            N, T = -R[self.axis], float(np.linalg.norm(R[dirs]))
+            if T > fmax * max(N, 0.0) * (1.0 + 1e-9) + 1e-14 * np.abs(R).max():
+                at = f" at load step {k} of {n} (t = {t:g})" if n > 1 else ""
+                raise SceneError(
+                    f"the tangential load T = {T:.6g}{at} exceeds the friction limit F N = "
+                    f"{fmax:g} x {N:.6g} = {fmax * N:.6g}: the body slides on the "
+                    f"foundation (statics of a rigid block; no static equilibrium)")
 
     # -- solve ---------------------------------------------------------------------------
     def _coarse_start(self):
@@ -278,13 +350,17 @@ class ContactProblem:
         """The N increments of `solve` (x holds u - u_D throughout; see there)."""
         cs, A = self.cs, self.A
         b_full, gap0 = self.b.copy(), cs.gap.copy()
+        groups = [(r, names, b_full if bg is self.b else bg)
+                  for r, names, bg in self.load_groups]
         v, un = self.x.duplicate(), cs.vec()
         v.set(0.0)
         self.step_log, self._g_start = [], None
         for k in range(1, n + 1):
             A.mult(v, self.b)
             self.b.scale(-1.0)
-            self.b.axpy(k / n, b_full)                   # s_k b - A u_(k-1)
+            factors = [ramp_factor(r, k / n) for r, _, _ in groups]
+            for f, (_, _, bg) in zip(factors, groups):
+                self.b.axpy(f, bg)                       # sum_g f_g(t_k) b_g - A u_(k-1)
             cs.normal_displacement(v, un)
             cs.gap.waxpy(-1.0, un, gap0)                 # gap - u_nu,(k-1)
             cs.has_gap = True
@@ -295,6 +371,9 @@ class ContactProblem:
             if k == n:
                 self.last_increment = self.x.copy()      # the slip of the last increment
             self.step_log.append({"step": k, "load_factor": k / n,
+                                  "part_factors": {p: f for f, (r, names, _) in
+                                                   zip(factors, groups) for p in names
+                                                   if r != DEFAULT_RAMP},
                                   "normal_force": self.normal_force(),
                                   "iterations": self.iterations(single=True),
                                   "residuals": dict(self.residuals)})
@@ -388,6 +467,8 @@ class ContactProblem:
         if start is not None:
             start[0].copy(self.l)
         g0 = start[1] if start is not None else getattr(self, "_g_start", None)
+        if cs.has_friction and g0 is None and self.friction_held is not None:
+            g0 = self._normal_pressure()
         if cs.has_friction:
             self.mode = "coulomb"
             self.fp = FixedPoint(self.uzawa, rtol=sol["fp_rtol"],
@@ -402,6 +483,52 @@ class ContactProblem:
             self.fp = None
             self.uzawa.solve(self.x, self.l, None)
             self.g = cs.vec()
+
+    def _normal_pressure(self):
+        """g^0 for a body held tangentially by friction alone (the paper's g^0 = 0 would
+        leave the first Tresca problem nothing to hold it with): the frictionless pressure
+        under the load b_n = b - M (M^T M)^-1 M^T b, i.e. b without its work on the free
+        tangential rigid motions M. Its Uzawa iterations count in the totals."""
+        Q, (x0, h) = self.friction_held
+        xyz = self.coordinates.getArray(readonly=True).reshape(-1, 3)
+        modes = fem.rigid_modes(xyz, x0, h)                   # (nv, 3, 6)
+        M = []
+        for q in Q.T:
+            m = self.b.duplicate()
+            m.setArray((modes @ q).ravel())
+            M.append(m)
+        G = np.array([[mi.dot(mj) for mj in M] for mi in M])
+        c = np.linalg.solve(G, np.array([mi.dot(self.b) for mi in M]))
+        b_saved = self.b.copy()
+        for ci, m in zip(c, M):
+            self.b.axpy(-ci, m)
+        for i, m in enumerate(M):                             # orthonormal basis of M
+            for prev in M[:i]:
+                m.axpy(-m.dot(prev), prev)
+            m.scale(1.0 / m.norm())
+        ns = PETSc.NullSpace().create(vectors=M, comm=self.comm)
+        if isinstance(self.inner, SemismoothNewton):          # A + P is singular on M
+            self.inner.nullspace = ns
+        l0 = self.cs.vec()
+        self.x.set(0.0)
+        try:
+            self.uzawa.solve(self.x, l0, None)
+        finally:
+            b_saved.copy(self.b)
+            if isinstance(self.inner, SemismoothNewton):
+                self.inner.nullspace = None                   # next solve: a new K, PC
+                if self.inner.K is not None:
+                    self.inner.K.destroy()
+                    self.inner.K = None
+                self.inner._pc_sets = None
+            for vec in M + [b_saved]:
+                vec.destroy()
+            ns.destroy()
+        self.x.set(0.0)
+        PETSc.Sys.Print(f"fp: g^0 = the frictionless pressure (normal force "
+                        f"{l0.dot(self.cs.w):.6g}); the body is held tangentially by "
+                        f"friction alone", comm=self.comm)
+        return l0
 
     @property
     def converged(self):

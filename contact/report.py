@@ -45,6 +45,7 @@ def summary(problem, time_total):
         "normal_force": problem.normal_force(),
         "loading": problem.loading,
         "load_steps": problem.load_steps,
+        "held_by_friction": getattr(problem, "friction_held", None) is not None,
         "steps": getattr(problem, "step_log", None) or [],
         "skipped": problem.skipped,
         "energy": res.energy(problem),

@@ -45,7 +45,7 @@ SCHEMA = {
     "solver": ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol", "ssn_rtol", "apg_max_it",
                "uzawa_max_it", "fp_max_it", "ssn_max_it", "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
-    "part": ("plane", "physical", "type", "traction", "components", "displacement"),
+    "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -279,9 +279,31 @@ def _rest(scene):
         elif "displacement" in part or "components" in part:
             raise SceneError(f"boundary part {name!r}: displacement/components belong to "
                              f"dirichlet parts, not {t}")
+        if "ramp" in part:
+            _ramp(part, name)
     if not any(p["type"] in ("dirichlet", "symmetry", "contact") for p in parts.values()):
         raise SceneError("scene has no dirichlet (clamped), symmetry or contact part: "
                          "rigid-body motion is not excluded")
+
+
+def _ramp(part, name):
+    """ramp: [t0, t1], 0 <= t0 < t1 <= 1: the part's load (traction or prescribed
+    displacement) grows linearly from 0 at the load parameter t0 to its full value at t1."""
+    if part["type"] not in ("traction", "dirichlet"):
+        raise SceneError(f"boundary part {name!r}: ramp belongs to traction and dirichlet "
+                         f"parts, not {part['type']}")
+    r = _numbers(part["ramp"], 2, f"boundary part {name!r}: ramp")
+    if not 0.0 <= r[0] < r[1] <= 1.0:
+        raise SceneError(f"boundary part {name!r}: ramp [t0, t1] needs 0 <= t0 < t1 <= 1 "
+                         f"(load parameter), got {r!r}")
+    part["ramp"] = [float(r[0]), float(r[1])]
+
+
+def ramp_factor(ramp, t):
+    """The factor of a part with ramp [t0, t1] at load parameter t (0 before t0, 1 after
+    t1, linear between)."""
+    t0, t1 = ramp
+    return min(1.0, max(0.0, (t - t0) / (t1 - t0)))
 
 
 def _foundation(contact):

@@ -227,17 +227,17 @@ def solve_tresca(K, f, dirichlet, nrm_dofs, tan_dofs, w, s, tol=1e-10):
 
 
 def solve_coulomb(K, f, dirichlet, nrm_dofs, tan_dofs, w, F, tol=1e-9,
-                  max_it=200):
+                  max_it=200, g0=None):
     """Discrete Coulomb friction by successive approximations of the slip bound.
 
-    g^0 = 0; for t = 0, 1, ...: solve Tresca with s = F * g^t, g^{t+1} = its
+    g^0 = 0 (or g0, (m,)); for t = 0, 1, ...: solve Tresca with s = F * g^t, g^{t+1} = its
     pressure; stop when ||g^{t+1} - g^t|| <= tol ||g^{t+1}|| (or both are 0).
     F is scalar or (m,).  Returns dict(u, pressure, force, iterations) at the
     fixed point g = pressure(F g).  Raises RuntimeError after max_it iterations.
     """
     m = np.asarray(nrm_dofs).size
     F = np.broadcast_to(np.asarray(F, dtype=float), (m,))
-    g = np.zeros(m)
+    g = np.zeros(m) if g0 is None else np.broadcast_to(np.asarray(g0, float), (m,)).copy()
     for it in range(1, max_it + 1):
         res = solve_tresca(K, f, dirichlet, nrm_dofs, tan_dofs, w, F * g)
         gn = res["pressure"]

@@ -134,9 +134,14 @@ CASES = [
         t, _set([0.0, 0.0, float("inf")], "body_force"))], "body_force"),
     ("friction-expression-inf", lambda t: ["-friction", "x/0"], "must be finite"),
     ("friction-expression-syntax", lambda t: ["-friction", "x+"], "cannot be evaluated"),
-    ("no-clamped-part", lambda t: ["-scene", scene_file(t, _del("boundary", "clamped"))],
+    ("no-clamped-part", lambda t: ["-friction", "0", "-scene",
+                                   scene_file(t, _del("boundary", "clamped"))],
      "rigid-body motion free"),
-    ("rigid-motion-free", lambda t: ["-scene", scene_file(
+    ("friction-cannot-hold", lambda t: ["-scene", scene_file(t, lambda sc: (
+        _del("boundary", "clamped")(sc),
+        _set([30.0, 0.0, 20.0], "boundary", "end", "traction")(sc)))],
+     "exceeds the friction limit"),
+    ("rigid-motion-free", lambda t: ["-friction", "0", "-scene", scene_file(
         t, _set(["z"], "boundary", "clamped", "components"))], "rigid-body motion free"),
     ("missing-part", lambda t: ["-scene", scene_file(
         t, _set(["x", 5.0], "boundary", "end", "plane"))], "no cell face lies on the plane"),

@@ -1,0 +1,174 @@
+"""A block held on the foundation by friction alone (no dirichlet part: the translations
+along the foundation and the rotation about its normal are free) under pressure p and a
+tangential traction q, and loading schedules (per-part ramps).
+
+Closed-form statics of a rigid block: equilibrium iff q <= F p; the run refuses q > F p
+with the load step named. Below the limit the discrete Coulomb solution is checked against
+the independent conic solver (started from the uniform pressure p, since g = 0 would hold
+nothing), and the stick zone shrinks as q approaches F p."""
+import copy
+
+import numpy as np
+import pytest
+from conftest import (block_scene, gather, only_in_parallel, rel_err, skip_in_parallel,
+                      solve)
+from petsc4py import PETSc
+from reference_socp import solve_coulomb
+from test_reference import _discrete
+
+from contact import scene as scenes
+from contact.scene import SceneError
+
+E, NU, P, F = 1.0e3, 0.3, 2.0, 0.5
+TIGHT = dict(uzawa_r=1e4, apg_rtol=1e-12, uzawa_rtol=1e-10, fp_rtol=1e-9)
+
+
+def sheared(ratio, nd=2, ramps=None, steps=1, **solver):
+    """Unit block, contact z = 0, top traction (q, 0, -p) with q = ratio F p; with
+    ramps = (press, shear) the two parts of the top traction get these ramps."""
+    q = ratio * F * P
+    parts = {"contact": {"plane": ["z", 0.0], "type": "contact"}}
+    if ramps is None:
+        parts["top"] = {"plane": ["z", 1.0], "type": "traction", "traction": [q, 0.0, -P]}
+    else:
+        parts["press"] = {"plane": ["z", 1.0], "type": "traction",
+                          "traction": [0.0, 0.0, -P], "ramp": list(ramps[0])}
+        parts["shear"] = {"plane": ["z", 1.0], "type": "traction",
+                          "traction": [q, 0.0, 0.0], "ramp": list(ramps[1])}
+    sc = block_scene(parts, nd=nd, young=E, poisson=NU, friction=F, **{**TIGHT, **solver})
+    sc["loading"]["steps"] = steps
+    return scenes.validate(sc)
+
+
+def bottom_slip(pr):
+    """|u_tau| at the nodes of the contact face z = 0 (canonical order)."""
+    xyz, u = gather(pr)[:2]
+    bot = np.abs(xyz[:, 2]) < 1e-12
+    return np.hypot(u[bot, 0], u[bot, 1])
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("mode", ["faithful", "fast"])
+def test_below_the_limit_against_conic_solver(mode):
+    """q = 0.6 F p: our Coulomb solution equals the conic solver's fixed point."""
+    pr = solve(sheared(0.6, mode=mode, ssn_rtol=1e-13), PETSc.COMM_SELF)
+    assert pr.friction_held is not None and pr.mode == "coulomb"
+    d = _discrete(pr)
+    ref = solve_coulomb(F=F, g0=P, tol=1e-11, **d)
+    assert rel_err(pr.x.getArray(), ref["u"]) < 1e-6
+    assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-6
+    assert abs(pr.normal_force() - P) < 1e-8 * P           # N = p * area (statics)
+
+
+def test_stick_zone_shrinks_toward_the_limit(comm):
+    """Stick at low q (no node slips more than 1e-3 of the elastic shear scale q h / G),
+    more slip as q -> F p, and the same answer on 1 and 2 ranks (canonical order)."""
+    G = E / (2 * (1 + NU))
+    slips, fractions = [], []
+    for ratio in (0.2, 0.6, 0.95):
+        s = bottom_slip(solve(sheared(ratio, mode="fast", ssn_rtol=1e-13), comm))
+        scale = ratio * F * P / G
+        slips.append(s.mean() / scale)
+        fractions.append(np.mean(s > 1e-3 * scale))
+    assert slips[0] < slips[1] < slips[2]
+    assert fractions[0] <= fractions[1] <= fractions[2] and fractions[2] > 0
+    assert fractions[0] < 1
+
+
+@pytest.mark.parametrize("ratio,steps,where", [(1.2, 1, ""), (1.05, 1, ""),
+                                                (1.8, 4, "at load step 3 of 4")])
+def test_above_the_limit_slides(comm, ratio, steps, where):
+    """q > F p: statics says the block slides; the run refuses (before any solve)."""
+    ramps = ((0.0, 0.25), (0.25, 1.0)) if steps > 1 else None
+    with pytest.raises(SceneError, match=f"T = .*{where}.*exceeds the friction limit.*slides"):
+        solve(sheared(ratio, ramps=ramps, steps=steps), comm)
+
+
+def test_zero_friction_cannot_hold(comm):
+    sc = sheared(0.5)
+    sc["contact"]["friction"] = 0.0
+    with pytest.raises(SceneError, match="friction could hold.*F = 0"):
+        solve(sc, comm)
+
+
+def test_press_then_shear(comm):
+    """Ramps: the press alone for t <= 1/4, then the shear grows to its full value. The
+    first step carries no tangential load; each step's normal force is p (statics); the
+    part factors are logged; the end state obeys Coulomb's law (residual check)."""
+    pr = solve(sheared(0.8, ramps=((0.0, 0.25), (0.25, 1.0)), steps=4, mode="fast",
+                       ssn_rtol=1e-13), comm)
+    log = pr.step_log
+    assert [e["part_factors"] for e in log] == [
+        {"press": 1.0, "shear": pytest.approx(s)} for s in (0.0, 1 / 3, 2 / 3, 1.0)]
+    assert all(abs(e["normal_force"] - P) < 1e-8 * P for e in log)
+    assert max(max(e["residuals"].values()) for e in log) < 1e-6
+
+
+def test_frictionless_ramps_end_where_the_static_solve_does(comm):
+    """Frictionless contact is path-independent: a scene whose load comes in two ramped
+    groups (a traction, then a prescribed displacement) ends at the static answer, which
+    checks that the group loads sum to the full load."""
+    parts = {"sym_x": {"plane": ["x", 0.0], "type": "symmetry"},
+             "sym_y": {"plane": ["y", 0.0], "type": "symmetry"},
+             "contact": {"plane": ["z", 0.0], "type": "contact"},
+             "side": {"plane": ["x", 1.0], "type": "traction", "traction": [-0.5, 0.0, -0.3],
+                      "ramp": [0.0, 0.5]},
+             "top": {"plane": ["z", 1.0], "type": "dirichlet", "components": ["z"],
+                     "displacement": [0.0, 0.0, -0.002], "ramp": [0.5, 1.0]}}
+    static = block_scene(parts, nd=2, young=E, poisson=NU, **TIGHT)
+    stepped = copy.deepcopy(static)
+    stepped["loading"]["steps"] = 3
+    ua = gather(solve(static, comm))[1]
+    pr = solve(stepped, comm)
+    assert rel_err(gather(pr)[1], ua) < 1e-6
+    assert [e["part_factors"] for e in pr.step_log] == [
+        {"side": pytest.approx(a), "top": pytest.approx(b)}
+        for a, b in ((2 / 3, 0.0), (1.0, 1 / 3), (1.0, 1.0))]
+
+
+@pytest.mark.parametrize("part,msg", [
+    ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.5, 0.5]}, "0 <= t0 < t1 <= 1"),
+    ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.0, 1.5]}, "0 <= t0 < t1 <= 1"),
+    ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.0]}, "list of 2"),
+    ({"type": "contact", "ramp": [0.0, 1.0]}, "belongs to traction and dirichlet"),
+])
+def test_bad_ramps(part, msg):
+    parts = {"clamp": {"plane": ["z", 0.0], "type": "dirichlet"},
+             "top": {"plane": ["z", 1.0], **part}}
+    with pytest.raises(SceneError, match=msg):
+        block_scene(parts)
+
+
+@only_in_parallel
+def test_press_then_shear_same_on_two_ranks(comm):
+    """The friction-held, press-then-shear run gives the serial answer on 2 ranks."""
+    sc = sheared(0.8, ramps=((0.0, 0.25), (0.25, 1.0)), steps=4, mode="fast",
+                 ssn_rtol=1e-13)
+    par = gather(solve(copy.deepcopy(sc), comm))[1]
+    ser = gather(solve(sc, PETSc.COMM_SELF))[1]
+    assert rel_err(par, ser) < 1e-6
+
+
+def test_block_shear_scene_from_the_command_line(mpi_tmp_path):
+    """runs/scenes/block_shear.yaml through the CLI: summary.json says the body is held
+    by friction and logs each increment's ramp factors."""
+    import json
+    import os
+
+    from conftest import ROOT
+    from mpi4py import MPI
+
+    from contact import cli
+    out = os.path.join(mpi_tmp_path, "out")
+    o = PETSc.Options()
+    for k, v in {"scene": os.path.join(ROOT, "runs", "scenes", "block_shear.yaml"),
+                 "nd": "2", "output_dir": out, "output_formats": "json"}.items():
+        o.setValue(k, v)
+    s = cli.run()
+    assert s["held_by_friction"] and s["converged"] and s["load_steps"] == 4
+    if MPI.COMM_WORLD.rank == 0:
+        with open(os.path.join(out, "summary.json")) as f:
+            js = json.load(f)
+        assert [e["part_factors"]["shear"] for e in js["steps"]] == pytest.approx(
+            [0.0, 1 / 3, 2 / 3, 1.0])
+        assert js["normal_force"] == pytest.approx(2.0, rel=1e-6)
