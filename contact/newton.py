@@ -17,7 +17,8 @@ near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 Theta (convex) globalises the step (-ssn_linesearch false: full steps).
 -ssn_pc_reuse (default true): keep the preconditioner while the active, stick and slip
 sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off);
--ssn_pc_lag N: also keep it for N-1 steps after each set-up even if the sets changed. Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
+-ssn_pc_lag N: also keep it for N-1 steps after each set-up even if the sets changed.
+Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
 contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
 """
 import numpy as np
@@ -248,8 +249,8 @@ class SemismoothNewton(Loop):
                 break
             t, theta_t, full = self._line_search(x, l, lam_a, theta)
             rtol = self.ksp.getTolerances()[0]
-            if self.linesearch and not full and (t < self.min_step or theta_t > theta) \
-                    and rtol > 1e-10:
+            if self.linesearch and not full and rtol > 1e-10 and \
+                    (t < self.min_step or not self._decrease(theta_t, theta)):
                 # an inexact Krylov solve may give no descent direction: solve it again
                 # a thousand times more accurately before giving up on Newton
                 self.ksp.setTolerances(rtol=max(1e-3 * rtol, 1e-12))
@@ -258,7 +259,8 @@ class SemismoothNewton(Loop):
                 self.ksp.setTolerances(rtol=rtol)
                 self.accurate_resolves += 1
                 t, theta_t, full = self._line_search(x, l, lam_a, theta)
-            if self.linesearch and not full and (t < self.min_step or theta_t > theta):
+            if self.linesearch and not full and \
+                    (t < self.min_step or not self._decrease(theta_t, theta)):
                 # dx is no (good) descent direction of Theta: take the proximal-gradient
                 # step 1/L instead, which decreases Theta; its length says nothing
                 # about convergence, so the test waits for the next Newton step
@@ -285,6 +287,13 @@ class SemismoothNewton(Loop):
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
 
+    @staticmethod
+    def _decrease(theta_t, theta):
+        """Theta(x + t dx) <= Theta(x) up to the rounding of Theta (the line search's
+        acceptance test; the fallback below must use the same one, or a step accepted
+        within rounding is then rejected, and the iteration stalls on null steps)."""
+        return theta_t <= theta + 1e-14 * abs(theta)
+
     def _line_search(self, x, l, lam, theta):
         """Halve t from 1 until Theta(x + t dx) <= Theta(x) or t < min_step; xt, Axt hold
         the last trial. Returns (t, Theta(xt), full): full = the step is below the
@@ -295,7 +304,7 @@ class SemismoothNewton(Loop):
             self.xt.waxpy(t, self.dx, x)
             self.A.mult(self.xt, self.Axt)
             theta_t = self.objective(self.xt, self.Axt, l, lam)
-            if not self.linesearch or full or theta_t <= theta + 1e-14 * abs(theta) \
+            if not self.linesearch or full or self._decrease(theta_t, theta) \
                     or t < self.min_step:
                 return t, theta_t, full
             t *= 0.5

@@ -127,3 +127,22 @@ def test_ssn_recovers_where_the_inexact_newton_direction_fails():
     ref = solve_coulomb(F=pr.cs.local_array(pr.cs.F), tol=1e-11, **d)
     assert rel_err(pr.x.getArray(), ref["u"]) < 1e-5
     assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-5
+
+
+def test_step_within_rounding_is_not_rejected(comm):
+    """Regression: the line search accepts Theta(x + dx) <= Theta(x) up to rounding, and
+    the fallback test must agree. It used to reject such a step, take a null
+    proximal-gradient step, and repeat until DIVERGED_MAX_IT (Spence's problem, nu = 0,
+    F = 0.2, 5 increments, nd = 4, in the fast preset). The stick zone it gives is checked
+    against the independent half-space BEM value c/a = 0.224 (runs/halfspace_bem.py,
+    runs/results/validation.md) to the resolution of this mesh (h/a about 0.2)."""
+    import os
+    import sys
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(
+        os.path.abspath(__file__))), "runs"))
+    import validate
+    sc = validate.hertz_scene(4, nu=0.0, friction=0.2, steps=5)
+    pr = solve(sc, comm)
+    assert pr.converged and len(pr.step_log) == 5
+    c_over_a = validate.analyse(pr, 0.0, 0.2)["c_over_a"]
+    assert abs(c_over_a - 0.224) < 0.2 * 0.224
