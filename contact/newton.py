@@ -250,7 +250,7 @@ class SemismoothNewton(Loop):
             t, theta_t, full = self._line_search(x, l, lam_a, theta)
             rtol = self.ksp.getTolerances()[0]
             if self.linesearch and not full and rtol > 1e-10 and \
-                    (t < self.min_step or not self._decrease(theta_t, theta)):
+                    self._rejected(t, theta_t, theta):
                 # an inexact Krylov solve may give no descent direction: solve it again
                 # a thousand times more accurately before giving up on Newton
                 self.ksp.setTolerances(rtol=max(1e-3 * rtol, 1e-12))
@@ -259,8 +259,7 @@ class SemismoothNewton(Loop):
                 self.ksp.setTolerances(rtol=rtol)
                 self.accurate_resolves += 1
                 t, theta_t, full = self._line_search(x, l, lam_a, theta)
-            if self.linesearch and not full and \
-                    (t < self.min_step or not self._decrease(theta_t, theta)):
+            if self.linesearch and not full and self._rejected(t, theta_t, theta):
                 # dx is no (good) descent direction of Theta: take the proximal-gradient
                 # step 1/L instead, which decreases Theta; its length says nothing
                 # about convergence, so the test waits for the next Newton step
@@ -289,10 +288,19 @@ class SemismoothNewton(Loop):
 
     @staticmethod
     def _decrease(theta_t, theta):
-        """Theta(x + t dx) <= Theta(x) up to the rounding of Theta (the line search's
-        acceptance test; the fallback below must use the same one, or a step accepted
-        within rounding is then rejected, and the iteration stalls on null steps)."""
+        """Theta(x + t dx) <= Theta(x) up to the rounding of Theta."""
         return theta_t <= theta + 1e-14 * abs(theta)
+
+    def _rejected(self, t, theta_t, theta):
+        """Whether the line search's step is no good: too short, or no decrease. The full
+        step (t = 1) is judged up to rounding, as the line search judged it: near the
+        solution a Newton step changes Theta by less than its rounding, and rejecting it
+        led to null proximal-gradient steps until DIVERGED_MAX_IT. A cut step (t < 1)
+        must decrease Theta strictly: one that stops only within rounding is too short to
+        make progress (the accurate re-solve or the proximal-gradient step follow)."""
+        if t < self.min_step:
+            return True
+        return not self._decrease(theta_t, theta) if t == 1.0 else theta_t > theta
 
     def _line_search(self, x, l, lam, theta):
         """Halve t from 1 until Theta(x + t dx) <= Theta(x) or t < min_step; xt, Axt hold
