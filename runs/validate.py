@@ -185,7 +185,12 @@ def plots(rows, curve, spence, outdir):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     os.makedirs(outdir, exist_ok=True)
-    fine = rows[-1]
+    if rows:
+        _hertz_plot(plt, rows[-1], outdir)
+    _other_plots(plt, curve, spence, outdir)
+
+
+def _hertz_plot(plt, fine, outdir):
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(fine["r"], fine["p"], "o", ms=3, label=f"computed, nodal (nd = {fine['nd']})")
     rr = np.linspace(0, fine["a_hertz"], 200)
@@ -198,6 +203,9 @@ def plots(rows, curve, spence, outdir):
     fig.tight_layout()
     fig.savefig(os.path.join(outdir, "hertz_pressure.png"), dpi=120)
     plt.close(fig)
+
+
+def _other_plots(plt, curve, spence, outdir):
     if curve and not isinstance(curve, str):
         dl, P, PH = np.array(curve).T
         fig, ax = plt.subplots(figsize=(6, 4))
@@ -227,24 +235,8 @@ def plots(rows, curve, spence, outdir):
         plt.close(fig)
 
 
-def write_report(path, args, rows, curve, curve_t, spence, bem, total):
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, cwd=HERE).stdout.strip()
-    L = [f"# Validation against closed-form contact solutions",
-         "",
-         f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
-         f"{datetime.date.today()}, commit {commit}, PETSc "
-         + "%d.%d.%d" % PETSc.Sys.getVersion() + f", {PETSc.COMM_WORLD.getSize()} rank(s).",
-         f"Command: `python runs/validate.py {' '.join(sys.argv[1:])}` "
-         f"(`make validate`), {total:.0f} s in all.",
-         "",
-         "Scene `runs/scenes/hertz.yaml`: quarter block 8 x 8 x 8 (gmsh "
-         "`meshes/hertz_block.geo`: uniform core 1 x 1 x 1 of (2 nd)^3 cells, graded "
-         "outwards), E = 1, gap (x^2 + y^2)/(2R) with R = 10 to the rigid plane z = 0, "
-         "top clamped and pushed down by d = 0.04, symmetry on x = 0 and y = 0, "
-         "`-solver_mode fast`. P = 4 x the sum of l_j w_j over the quarter.",
-         "",
-         "## Hertz, frictionless (nu = 0.3)",
+def _hertz_section(rows):
+    L = ["## Hertz, frictionless (nu = 0.3)",
          "",
          "a and p0: least-squares fit of p^2 = p0^2 (1 - r^2/a^2) to the nodal pressures "
          "(runs/contact_theory.py); Hertz values at the computed force P "
@@ -268,6 +260,29 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
                  f"{(a['delta'] - 0.04) / 0.04:.2%} | {a['P_hertz']:.5e} | {eP:+.2%} | "
                  f"{a['time']:.1f} |")
     L += ["", "![pressure](validation/hertz_pressure.png)", ""]
+    return L
+
+
+def write_report(path, args, rows, curve, curve_t, spence, bem, total):
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=HERE).stdout.strip()
+    L = [f"# Validation against closed-form contact solutions",
+         "",
+         f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
+         f"{datetime.date.today()}, commit {commit}, PETSc "
+         + "%d.%d.%d" % PETSc.Sys.getVersion() + f", {PETSc.COMM_WORLD.getSize()} rank(s).",
+         f"Command: `python runs/validate.py {' '.join(sys.argv[1:])}` "
+         f"(`make validate`), {total:.0f} s in all.",
+         "",
+         "Scene `runs/scenes/hertz.yaml`: quarter block 8 x 8 x 8 (gmsh "
+         "`meshes/hertz_block.geo`: uniform core 1 x 1 x 1 of (2 nd)^3 cells, graded "
+         "outwards), E = 1, gap (x^2 + y^2)/(2R) with R = 10 to the rigid plane z = 0, "
+         "top clamped and pushed down by d = 0.04, symmetry on x = 0 and y = 0, "
+         "`-solver_mode fast`. P = 4 x the sum of l_j w_j over the quarter.",
+         "",
+         ""]
+    if rows:
+        L += _hertz_section(rows)
     if isinstance(curve, str):
         L += [f"Force-indentation from load increments (nd = {args.curve_nd}, "
               f"{args.curve_steps} increments): **failed**: {curve}", ""]
@@ -330,6 +345,8 @@ def main():
     ap.add_argument("--spence-nd", type=int, default=6)
     ap.add_argument("--spence-steps", type=int, default=8)
     ap.add_argument("--quick", action="store_true", help="small meshes (a smoke run)")
+    ap.add_argument("--spence-only", action="store_true",
+                    help="only the frictional stick-zone study (use another --out)")
     ap.add_argument("--bem", action="store_true",
                     help="also run the half-space BEM reference (runs/halfspace_bem.py)")
     ap.add_argument("--out", default=os.path.join(OUT, "validation.md"))
@@ -337,8 +354,11 @@ def main():
     if args.quick:
         args.nds, args.curve_nd, args.spence_nd, args.spence_steps = "2,3", 2, 3, 3
     t0 = time.perf_counter()
-    rows = frictionless_study([int(n) for n in args.nds.split(",")])
-    curve, curve_t = curve_study(args.curve_nd, args.curve_steps) if args.curve_steps else ([], 0)
+    rows, curve, curve_t = [], [], 0
+    if not args.spence_only:
+        rows = frictionless_study([int(n) for n in args.nds.split(",")])
+        if args.curve_steps:
+            curve, curve_t = curve_study(args.curve_nd, args.curve_steps)
     cases = [(0.3, 0.2), (0.3, 0.5), (0.0, 0.2), (0.0, 0.5)]
     spence = spence_study(args.spence_nd, args.spence_steps, cases)
     bem = bem_reference(cases) if args.bem and PETSc.COMM_WORLD.getRank() == 0 else {}
