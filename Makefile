@@ -80,6 +80,7 @@ stability: install
 validate: install
 	$(PY) runs/validate.py $(VALIDATE_ARGS)
 	$(PY) runs/validate_block.py
+	$(PY) runs/validate_incline.py
 
 clean:
 	rm -rf runs/out .pytest_cache

@@ -7,11 +7,13 @@ paper's trapezoidal rule), the friction coefficient F_j, the initial gap gap_j, 
 dofs of its normal and tangential components.
 
 The foundation is the half-space {(X - p) . n <= 0} behind the plane through p with unit
-normal n = +e_k (k = x, y or z; the paper: p = 0, n = e_z). The body's outward normal on
-the contact is nu = -n, so u_nu = u . nu = -u_k and x_tau = the two other components.
+normal n (the paper: p = 0, n = e_z). The body's outward normal on the contact is
+nu = -n, so u_nu = u . nu = -u . n. For n = +e_k (k = x, y or z), u . n = u_k and x_tau =
+the two other components; for any other n the contact nodes' dofs are those of the
+basis (t1, t2, n) of contact/frame.py (`frame`), so u . n = u~_3 and x_tau = (u~_1, u~_2).
 Non-penetration: u_nu,j <= gap_j, where gap_j = (X_j - p) . n (the distance to the plane)
 or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)).
-In contact space, component 2 is the normal axis k and 0, 1 are the tangential axes.
+In contact space, component 2 is the normal one and 0, 1 are the tangential ones.
 
 Contact-space quantities (l, g, w, F, ...) are PETSc Vecs of the contact nodes owned by
 each rank; `gather_*` / `scatter_*` move the normal and tangential components between a
@@ -21,6 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import fem
+from .frame import ContactFrame, axis_of, basis
 
 FORWARD = PETSc.ScatterMode.FORWARD
 REVERSE = PETSc.ScatterMode.REVERSE
@@ -48,11 +51,15 @@ def friction_values(spec, xyz, what="friction"):
 class ContactSet:
     """Contact nodes, weights w, friction F and the scatters to contact space."""
 
-    def __init__(self, dm, coords, faces, clamped_rows, friction, template, axis=2,
-                 point=(0.0, 0.0, 0.0), gap=None):
+    def __init__(self, dm, coords, faces, clamped_rows, friction, template,
+                 normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None):
         comm = dm.getComm()
-        self.axis = axis                                  # k: n = +e_k, nu = -e_k
-        comps = [c for c in range(3) if c != axis] + [axis]   # contact space -> x, y, z
+        self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+        axis = axis_of(self.normal)
+        #: None for n = +e_k; else the basis change of contact/frame.py (t1, t2, n dofs)
+        self.frame = None
+        self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
+        comps = [c for c in range(3) if c != self.axis] + [self.axis]
         nv = coords.shape[0]
         # per vertex: [on a contact face, -, lumped weight]; summed over ranks
         loc = np.zeros((nv, 3))
@@ -71,10 +78,38 @@ class ContactSet:
         #: n_d as the paper counts it (all nodes of the contact face, clamped ones too)
         self.n_paper = comm.tompi4py().allreduce(int(on_face.sum())) if comm.getSize() > 1 \
             else int(on_face.sum())
-        ndofs = rstart + 3 * np.flatnonzero(on_face) + axis
+        face_nodes = np.flatnonzero(on_face)
+        held = np.isin(rstart + 3 * face_nodes[:, None] + np.arange(3), clamped_rows)
+        err = None
         active = on_face.copy()
-        active[np.flatnonzero(on_face)[np.isin(ndofs, clamped_rows)]] = False
+        if axis is not None:                     # n = +e_k: out when u_k is clamped
+            active[face_nodes[held[:, axis]]] = False
+        else:                                    # out when clamped; partly: only along t1
+            Q = basis(self.normal)
+            active[face_nodes[held.all(axis=1)]] = False
+            part = held.any(axis=1) & ~held.all(axis=1)
+            ok = [c for c in range(3) if np.array_equal(np.abs(Q[0]), np.eye(3)[c])]
+            bad = part & np.any(np.delete(held, ok, axis=1), axis=1)
+            if bad.any():
+                X = owned_xyz[face_nodes[np.argmax(bad)]]
+                err = (f"a contact node at ({X[0]:g}, {X[1]:g}, {X[2]:g}) has some but "
+                       f"not all displacement components clamped, and the foundation's "
+                       f"normal {tuple(float(c) for c in self.normal)} is not orthogonal to "
+                       f"them: clamp all components there or none (a symmetry plane must "
+                       f"contain the normal)")
+        errs = [e for e in comm.tompi4py().allgather(err) if e]
+        if errs:
+            raise ValueError(errs[0])
         nodes = np.flatnonzero(active)
+        if axis is None:
+            self.frame = ContactFrame(dm, Q, nodes, nv)
+            cl = np.asarray(clamped_rows, dtype=PETSc.IntType)
+            rot = np.isin(cl // 3, rstart // 3 + nodes)
+            #: the clamped rows in the frame's basis: a clamped u_c of a rotated node is
+            #: its dof t1 = e_c (checked above)
+            self.clamped_rows = np.where(rot, cl - cl % 3, cl).astype(PETSc.IntType)
+        else:
+            self.clamped_rows = np.asarray(clamped_rows, dtype=PETSc.IntType)
         self.local_size = nodes.size
         self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in comps]
         self.coordinates = owned_xyz[nodes]                      # (m_local, 3), for output
@@ -90,7 +125,7 @@ class ContactSet:
         if F is not None and (np.any(~np.isfinite(F)) or np.any(F < 0.0)):
             err = f"friction {friction!r} must be finite and >= 0 on the contact face"
         if gap is None:                                   # distance to the plane
-            G = owned_xyz[nodes, axis] - float(point[axis])
+            G = (owned_xyz[nodes] - np.asarray(point, dtype=float)) @ self.normal
         else:
             try:
                 G = friction_values(gap, owned_xyz[nodes], what="gap")

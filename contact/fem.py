@@ -100,8 +100,9 @@ def nodal_face_weights(faces, coords):
     return w
 
 
-def assemble_stiffness(dm, conn, coords, young, poisson):
-    """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained."""
+def assemble_stiffness(dm, conn, coords, young, poisson, frame=None):
+    """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained; in the
+    basis of a contact frame (contact/frame.py: T^T A T) when one is given."""
     lam, mu = lame(young, poisson)
     A = dm.createMat()           # createMatrix is gone in petsc4py >= 3.20
     if A.getBlockSize() != 3:
@@ -111,6 +112,8 @@ def assemble_stiffness(dm, conn, coords, young, poisson):
     for s in range(0, conn.shape[0], CHUNK):
         c = conn[s:s + CHUNK]
         Ke = element_stiffness(coords[c], lam, mu)
+        if frame is not None:
+            Ke = frame.element_matrices(Ke, c)
         A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
                                    Ke.reshape(c.shape[0], -1), addv=PETSc.InsertMode.ADD_VALUES)
     A.assemble()
@@ -222,10 +225,10 @@ def rigid_modes(xyz, x0, h):
     return M
 
 
-def free_rigid_modes(coordinates, rows, normal_points=None, axis=2):
-    """Rigid-body motions not fixed by the dofs `rows` (global, owned) and, if given, by
-    the normal displacement (component `axis`) at `normal_points` (owned contact nodes,
-    (m, 3)).
+def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.0)):
+    """Rigid-body motions not fixed by the dofs `rows` (global, owned, x, y, z) and, if
+    given, by the normal displacement u . n (n = `normal`) at `normal_points` (owned
+    contact nodes, (m, 3)).
 
     Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
     6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
@@ -238,7 +241,8 @@ def free_rigid_modes(coordinates, rows, normal_points=None, axis=2):
     loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
     R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
     if normal_points is not None:
-        R = np.vstack([R, rigid_modes(normal_points, x0, h)[:, axis, :]])
+        R = np.vstack([R, np.einsum("pcm,c->pm", rigid_modes(normal_points, x0, h),
+                                    np.asarray(normal, dtype=float))])
     lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
     Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
     names = set()
@@ -247,16 +251,39 @@ def free_rigid_modes(coordinates, rows, normal_points=None, axis=2):
     return sorted(names, key=RIGID_MODES.index), Q, (x0, h)
 
 
-def load_lifts_off(coordinates, b, Q, frame, contact_points, axis=2):
+def tangential_modes(Q, normal, tol=1e-8):
+    """True when every rigid motion in span Q (6, k) is tangential to the plane of unit
+    normal n: translations along the plane and rotations about n (no normal
+    displacement anywhere on the plane)."""
+    n = np.asarray(normal, dtype=float)
+    t, w = Q[:3], Q[3:]
+    return bool(np.all(np.abs(n @ t) <= tol) and
+                np.all(np.linalg.norm(w - np.outer(n, n @ w), axis=0) <= tol))
+
+
+def free_translations(Q, tol=1e-8):
+    """(3, m): an orthonormal basis of the pure translations in span Q (6, k)."""
+    if Q.shape[1] == 0:
+        return np.zeros((3, 0))
+    _, s, Vt = np.linalg.svd(Q[3:])
+    C = Vt[np.count_nonzero(s > tol):].T                  # combinations without rotation
+    if C.shape[1] == 0:
+        return np.zeros((3, 0))
+    U, s, _ = np.linalg.svd(Q[:3] @ C, full_matrices=False)
+    return U[:, s > tol]
+
+
+def load_lifts_off(coordinates, b, Q, frame, contact_points, normal=(0.0, 0.0, 1.0)):
     """True when the only rigid motion the dirichlet parts leave free (Q of one column,
-    held by the contact alone) can move the body away from the foundation (u_k >= 0 at
-    every contact node, n = e_k) and the load b does positive work on it: no
+    held by the contact alone) can move the body away from the foundation (u . n >= 0 at
+    every contact node) and the load b (x, y, z) does positive work on it: no
     equilibrium."""
     if Q.shape[1] != 1:
         return False            # several free motions: an LP we do not attempt
     comm = coordinates.getComm().tompi4py()
     xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
-    uz = rigid_modes(contact_points, *frame)[:, axis, :] @ Q[:, 0]
+    uz = np.einsum("pcm,c->pm", rigid_modes(contact_points, *frame),
+                   np.asarray(normal, dtype=float)) @ Q[:, 0]
     lo = comm.allreduce(uz.min(initial=np.inf), op=MPI.MIN)
     hi = comm.allreduce(uz.max(initial=-np.inf), op=MPI.MAX)
     scale = max(abs(lo), abs(hi), 1e-300)
@@ -284,11 +311,13 @@ def eliminate_dirichlet(A, b, rows):
     return scale
 
 
-def configure_elasticity(A, coordinates):
-    """Block size 3, SPD flag and the rigid-body near-nullspace on A."""
+def configure_elasticity(A, coordinates, frame=None):
+    """Block size 3, SPD flag and the rigid-body near-nullspace on A (in the basis of a
+    contact frame when one is given)."""
     A.setOption(PETSc.Mat.Option.SPD, True)
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    ns = PETSc.NullSpace().createRigidBody(coordinates)
+    ns = (PETSc.NullSpace().createRigidBody(coordinates) if frame is None
+          else frame.rigid_body_nullspace(coordinates))
     A.setNearNullSpace(ns)
     return ns
 

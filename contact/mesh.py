@@ -251,3 +251,15 @@ def labelled_faces(dm, conn, label_name):
             if (int(v) >> k) & 1 and cells.size:
                 out.append(conn[cells][:, HEX_FACES[k]])
     return np.concatenate(out).astype(np.intp)
+
+
+def rotate_coordinates(dm, coords, axis, degrees, origin=(0.0, 0.0, 0.0)):
+    """Turn the mesh by `degrees` about the line through `origin` along `axis` (scene
+    mesh.rotate): the DM's coordinates and the local array `coords` (returned anew)."""
+    from .frame import rotation
+    R, o = rotation(axis, degrees), np.asarray(origin, dtype=float)
+    g = dm.getCoordinates()
+    a = g.getArray(readonly=True).reshape(-1, 3)
+    g.setArray(((a - o) @ R.T + o).ravel())
+    dm.setCoordinates(g)
+    return (coords - o) @ R.T + o

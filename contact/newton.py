@@ -65,7 +65,10 @@ class SemismoothNewton(Loop):
         self.ksp_iterations = 0
         self.line_search_cuts = 0
         self.n_stick = self.n_slip = 0
-        self.nullspace = None        # PETSc.NullSpace of K when A leaves rigid motions free
+        #: mu > 0: K + mu on the contact nodes' dofs (a Levenberg-Marquardt term; the
+        #: gradient and Theta are unchanged): keeps K nonsingular when nothing but the
+        #: contact holds the body and the active nodes alone do not (e.g. on one line)
+        self.contact_spring = 0.0
         v = b.duplicate()                # the DM's Vec type, not the Mat's default
         self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt = \
             (v.duplicate() for _ in range(6))
@@ -200,6 +203,10 @@ class SemismoothNewton(Loop):
             self._sets = (active, stick, slip)
         else:
             self._sets = (active,)
+        if self.contact_spring > 0.0:
+            self.c0.set(self.contact_spring)
+            for c in range(3):
+                cs.scatter(self.c0, diag, c, mode=add)
         K.assemble()
         K.setDiagonal(diag, addv=add)
         diag.destroy()
@@ -229,9 +236,6 @@ class SemismoothNewton(Loop):
             grad, p = self._gradient(x, self.Ax, l)
             K, rhs = self._system(x, grad, p, lam_a)
             _EV_KSP.begin()
-            if self.nullspace is not None:       # consistent singular system
-                K.setNullSpace(self.nullspace)
-                self.nullspace.remove(rhs)
             self.ksp.setOperators(K)
             same = self._same_sets()
             self.ksp.getPC().setReusePreconditioner(same)
@@ -241,6 +245,14 @@ class SemismoothNewton(Loop):
                 self.pc_setups += 1
                 self._since_setup = 0
             self.ksp.solve(rhs, self.dx)
+            if self.ksp.getConvergedReason() < 0 and same:
+                # the kept preconditioner (-ssn_pc_lag, -ssn_pc_reuse) was built for other
+                # sets, whose penalties differ by r w: set it up afresh and solve again
+                self.ksp_iterations += self.ksp.getIterationNumber()
+                self.ksp.getPC().setReusePreconditioner(False)
+                self._pc_sets, self._since_setup = self._sets, 0
+                self.pc_setups += 1
+                self.ksp.solve(rhs, self.dx)
             _EV_KSP.end()
             self.ksp_iterations += self.ksp.getIterationNumber()
             if self.ksp.getConvergedReason() < 0:

@@ -30,7 +30,7 @@ def canonical_order(xyz):
 def gather_nodes(problem, x=None):
     """On rank 0: coordinates (n,3), displacement (n,3), cells (nc,8) in canonical order."""
     comm = problem.comm.tompi4py()
-    x = x if x is not None else problem.displacement()
+    x = problem.to_xyz(x) if x is not None else problem.displacement()
     xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
     u = x.getArray(readonly=True).reshape(-1, 3)
     rstart = problem.coordinates.getOwnershipRange()[0] // 3

@@ -46,6 +46,8 @@ def summary(problem, time_total):
         "loading": problem.loading,
         "load_steps": problem.load_steps,
         "held_by_friction": getattr(problem, "friction_held", None) is not None,
+        "foundation_normal": [float(c) for c in problem.normal],
+        "contact_frame": getattr(problem, "frame", None) is not None,
         "steps": getattr(problem, "step_log", None) or [],
         "skipped": problem.skipped,
         "energy": res.energy(problem),

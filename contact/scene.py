@@ -37,7 +37,8 @@ MESH_TYPES = ("box", "file", "gmsh")
 SCHEMA = {
     None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
            "solver", "loading"),
-    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters"),
+    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate"),
+    "rotate": ("axis", "degrees", "origin"),
     "material": ("young", "poisson"),
     "contact": ("friction", "foundation", "gap"),
     "foundation": ("point", "normal"),
@@ -203,6 +204,8 @@ def validate(scene):
             raise SceneError(f"mesh.parameters must map names to finite numbers, got {params!r}")
     else:
         _box(mesh)
+    if "rotate" in mesh:
+        _rotate(mesh["rotate"])
     _material(scene["material"])
     _rest(scene)
     return scene
@@ -218,6 +221,21 @@ def _box(mesh):
     if not (isinstance(cpn, list) and len(cpn) == 3 and
             all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cpn)):
         raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {cpn!r}")
+
+
+def _rotate(rot):
+    """mesh.rotate: {axis, degrees, origin}: the mesh is turned by `degrees` about the
+    line through `origin` (default 0) along `axis`, after its boundary parts are found
+    (planes name the unrotated mesh; tractions, components and the foundation are in the
+    rotated x, y, z)."""
+    _check_keys(rot, "rotate", "mesh.rotate")
+    ax = _numbers(rot.get("axis"), 3, "mesh.rotate.axis")
+    if not any(ax):
+        raise SceneError("mesh.rotate.axis must not be zero")
+    deg = rot.get("degrees")
+    if not isinstance(deg, (int, float)) or isinstance(deg, bool) or not math.isfinite(deg):
+        raise SceneError(f"mesh.rotate.degrees must be a finite number, got {deg!r}")
+    _numbers(rot.setdefault("origin", [0.0, 0.0, 0.0]), 3, "mesh.rotate.origin")
 
 
 def _material(mat):
@@ -307,18 +325,14 @@ def ramp_factor(ramp, t):
 
 
 def _foundation(contact):
-    """contact.foundation: the plane through `point` with unit normal `normal` = +e_k
-    (pointing into the body); defaults p = 0, n = e_z (the paper's)."""
+    """contact.foundation: the plane through `point` with normal `normal` (pointing into
+    the body; any length but 0); defaults p = 0, n = e_z (the paper's)."""
     fd = contact.setdefault("foundation", {})
     _check_keys(fd, "foundation", "contact.foundation")
     _numbers(fd.setdefault("point", [0.0, 0.0, 0.0]), 3, "contact.foundation.point")
     n = _numbers(fd.setdefault("normal", [0.0, 0.0, 1.0]), 3, "contact.foundation.normal")
-    norm = math.sqrt(sum(c * c for c in n))
-    k = max(range(3), key=lambda i: abs(n[i]))
-    if norm == 0 or n[k] <= 0 or any(abs(n[i]) > 1e-12 * norm for i in range(3) if i != k):
-        raise SceneError(f"contact.foundation.normal must point along +x, +y or +z (into "
-                         f"the body; other directions are not supported yet: rotate the "
-                         f"mesh), got {n!r}")
+    if not any(n):
+        raise SceneError(f"contact.foundation.normal must not be zero, got {n!r}")
     gap = contact.get("gap")
     if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float, str))
                             or (isinstance(gap, float) and not math.isfinite(gap))):
@@ -326,7 +340,30 @@ def _foundation(contact):
                          f"got {gap!r}")
 
 
-def foundation_axis(scene):
-    """k of the foundation's normal n = +e_k (validated by `validate`)."""
+def foundation_normal(scene):
+    """The foundation's unit normal n (validated by `validate`)."""
     n = scene.get("contact", {}).get("foundation", {}).get("normal", [0.0, 0.0, 1.0])
-    return max(range(3), key=lambda i: abs(n[i]))
+    norm = math.sqrt(sum(float(c) ** 2 for c in n))
+    return [float(c) / norm for c in n]
+
+
+def turned(scene, axis, degrees):
+    """The scene turned as a whole by `degrees` about `axis` (through the origin): its
+    mesh (mesh.rotate), tractions, body force and foundation (point and normal). Elasticity
+    and Coulomb's law being invariant, its answer is u_turned(R X) = R u(X). Returns the
+    validated scene and R."""
+    import numpy as np
+    from .frame import rotation
+    sc, R = copy.deepcopy(scene), rotation(axis, degrees)
+    if "rotate" in sc["mesh"]:
+        raise SceneError("turned: the scene's mesh is already rotated")
+    sc["mesh"]["rotate"] = {"axis": [float(a) for a in axis], "degrees": float(degrees)}
+    turn = lambda v: [float(c) for c in R @ np.asarray(v, dtype=float)]   # noqa: E731
+    for part in sc["boundary"].values():
+        if "traction" in part:
+            part["traction"] = turn(part["traction"])
+    sc["body_force"] = turn(sc.get("body_force", [0.0, 0.0, 0.0]))
+    fd = sc.setdefault("contact", {}).get("foundation", {})
+    sc["contact"]["foundation"] = {"point": turn(fd.get("point", [0.0, 0.0, 0.0])),
+                                   "normal": turn(fd.get("normal", [0.0, 0.0, 1.0]))}
+    return validate(sc), R

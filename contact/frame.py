@@ -1,0 +1,105 @@
+"""The contact frame: local bases at the contact nodes for a foundation whose normal n is
+not a coordinate axis.
+
+At each rotated node j (the contact nodes) the displacement dofs are the components in
+the orthonormal basis (t1, t2, n):  u~_j = Q u_j,  Q = [t1; t2; n] (rows),  u_j = Q^T u~_j;
+elsewhere u~ = u. With T = blockdiag(Q^T at rotated nodes, I elsewhere) (orthogonal) the
+loops solve for u~ with A~ = T^T A T (assembled element by element: K~_ab = Q_a K_ab Q_b^T)
+and b~ = T^T b, so the contact set reads u~_nu = -u~_3 and u~_tau = (u~_1, u~_2) as on an
+axis-aligned foundation. T is orthogonal: energies, Euclidean norms and residuals are
+the same in both bases. Only setup and output convert (`to_frame`, `to_xyz`).
+
+A coordinate axis e_c orthogonal to n is taken as t1 (exactly), so a contact node whose
+component c is clamped (a symmetry plane containing n) keeps that clamp as the dof t1.
+"""
+import math
+
+import numpy as np
+from petsc4py import PETSc
+
+
+def unit(v):
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def axis_of(normal, tol=1e-12):
+    """k when the unit `normal` is +e_k, else None."""
+    n = unit(normal)
+    k = int(np.argmax(np.abs(n)))
+    return k if n[k] > 0 and np.all(np.abs(np.delete(n, k)) <= tol) else None
+
+
+def basis(normal):
+    """Q (3, 3) with rows t1, t2, n: t1 the coordinate axis most nearly orthogonal to n,
+    projected on the plane (exactly e_c when n_c = 0), t2 = n x t1."""
+    n = unit(normal)
+    c = int(np.argmin(np.abs(n)))
+    t1 = np.eye(3)[c] - n[c] * n
+    t1 /= np.linalg.norm(t1)
+    if abs(n[c]) == 0.0:
+        t1 = np.eye(3)[c]
+    return np.vstack([t1, np.cross(n, t1), n])
+
+
+def rotation(axis, degrees):
+    """The rotation matrix R (3, 3) of `degrees` about `axis` (right hand; Rodrigues)."""
+    k = unit(axis)
+    th = math.radians(degrees)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
+
+
+class ContactFrame:
+    """The basis change u~ = T^T u at the owned nodes `nodes` (block rows) with matrix Q.
+
+    local_mask (nv,) marks the same nodes among the local (owned + ghost) vertices, for
+    element assembly."""
+
+    def __init__(self, dm, Q, nodes, nv):
+        self.Q = np.asarray(Q, dtype=float)
+        self.nodes = np.asarray(nodes, dtype=np.intp)
+        g = dm.createGlobalVec()
+        a = np.zeros(g.getLocalSize())
+        a.reshape(-1, 3)[self.nodes] = 1.0
+        g.setArray(a)
+        lvec = dm.getLocalVec()
+        dm.globalToLocal(g, lvec, addv=PETSc.InsertMode.INSERT_VALUES)
+        self.local_mask = lvec.getArray(readonly=True).reshape(-1, 3)[:, 0] > 0.5
+        assert self.local_mask.size == nv
+        dm.restoreLocalVec(lvec)
+        g.destroy()
+
+    def _apply(self, vec, M):
+        a = vec.getArray(readonly=True).copy()
+        a3 = a.reshape(-1, 3)
+        a3[self.nodes] = a3[self.nodes] @ M.T
+        vec.setArray(a)
+        return vec
+
+    def to_frame(self, vec):
+        """In place: u~_j = Q u_j at the rotated nodes (displacements and loads alike)."""
+        return self._apply(vec, self.Q)
+
+    def to_xyz(self, vec):
+        """In place: u_j = Q^T u~_j at the rotated nodes."""
+        return self._apply(vec, self.Q.T)
+
+    def element_matrices(self, Ke, cells):
+        """K~_ab = Q_a K_ab Q_b^T for element matrices Ke (m, 24, 24) of `cells` (m, 8);
+        Q_a = I at nodes that are not rotated."""
+        T = np.where(self.local_mask[cells][:, :, None, None], self.Q, np.eye(3))
+        K = Ke.reshape(cells.shape[0], 8, 3, 8, 3)
+        K = np.einsum("maij,majbk,mblk->maibl", T, K, T, optimize=True)
+        return K.reshape(Ke.shape)
+
+    def rigid_body_nullspace(self, coordinates):
+        """The rigid-body near-nullspace of A~: T^T of the six rigid modes (orthonormal,
+        as T^T is orthogonal)."""
+        ns = PETSc.NullSpace().createRigidBody(coordinates)
+        vecs = [self.to_frame(v.copy()) for v in ns.getVecs()]
+        ns.destroy()
+        out = PETSc.NullSpace().create(vectors=vecs, comm=coordinates.getComm())
+        for v in vecs:
+            v.destroy()
+        return out
