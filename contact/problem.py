@@ -481,8 +481,6 @@ class ContactProblem:
             inner = SemismoothNewton(self.A, self.b, cs, sol["uzawa_r"], self.clamped,
                                      self.diag_scale, rtol=sol.get("ssn_rtol", 1e-10),
                                      max_it=int(sol.get("ssn_max_it", 100)))
-            if self.friction_held is not None:   # only the contact holds the body
-                inner.contact_spring = 1e-3 * self.diag_scale
         else:
             inner = APG(self.A, self.b, cs, sol["uzawa_r"], rtol=sol["apg_rtol"],
                         max_it=int(sol.get("apg_max_it", 1000000)))
@@ -545,7 +543,9 @@ class ContactProblem:
         b_saved = self.b.copy()
         for ci, m in zip(c, M):
             self.b.axpy(-ci, m)
-        ssn = isinstance(self.inner, SemismoothNewton)   # its K: see _inner_solver
+        ssn = isinstance(self.inner, SemismoothNewton)
+        if ssn:                     # A + P is singular on M (and may be on more, when the
+            self.inner.contact_spring = 1e-3 * self.diag_scale   # active nodes are few)
         l0 = self.cs.vec()
         self.x.set(0.0)
         try:
@@ -553,6 +553,7 @@ class ContactProblem:
         finally:
             b_saved.copy(self.b)
             if ssn:                                           # next solve: a new K, PC
+                self.inner.contact_spring = 0.0
                 if self.inner.K is not None:
                     self.inner.K.destroy()
                     self.inner.K = None
