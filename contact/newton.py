@@ -14,7 +14,10 @@ Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives eac
 The system is SPD: KSP with prefix -ssn_ (default CG + GAMG, block size 3, rigid-body
 near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 -ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
-Theta (convex) globalises the step (-ssn_linesearch false: full steps).
+Theta (convex) globalises the step (-ssn_linesearch false: full steps). Where the
+semismooth direction does not descend Theta (its slip model is the prox equation's, not
+Theta's), the Newton step of Theta on the face where the stuck nodes stay stuck is tried
+(it descends), then a proximal-gradient step.
 -ssn_pc_reuse (default true): keep the preconditioner while the active, stick and slip
 sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off);
 -ssn_pc_lag N: also keep it for N-1 steps after each set-up even if the sets changed.
@@ -59,6 +62,7 @@ class SemismoothNewton(Loop):
         self.min_step = 1e-4         # line search: below this, a proximal-gradient step
         self.full_step_below = 1e-7  # relative Newton step taken without line search
         self.fallbacks = 0           # proximal-gradient steps taken
+        self.theta_newton_steps = 0  # Newton steps of Theta tried (_theta_newton)
         self.accurate_resolves = 0   # Newton systems solved again more accurately
         self.L_G = None
         self.first_iterations = None
@@ -135,8 +139,13 @@ class SemismoothNewton(Loop):
         self.cs.scatter(self.c2, g, 2, mode=PETSc.InsertMode.ADD_VALUES)
         return g, p
 
-    def _system(self, x, grad, p, lam):
-        """K = A + P + T and rhs = -(grad + s), with stick tangential dofs eliminated."""
+    def _system(self, x, grad, p, lam, theta_model=False):
+        """K = A + P + T and rhs = -(grad + s), with stick tangential dofs eliminated.
+
+        theta_model: the Newton system of Theta itself on the face where the nodes with
+        x_tau = 0 stay stuck (z = x_tau, tau = 0: n = x_tau/|x_tau|, c = lambda/|x_tau|,
+        s = lambda n, the gradient and Hessian of lambda |x_tau|): SPD with rhs = -grad
+        Theta on that face, so its direction descends Theta."""
         _EV_MAT.begin()
         cs = self.cs
         if self.K is None:
@@ -165,9 +174,11 @@ class SemismoothNewton(Loop):
             cs.gather(grad, self.c1, 1)
             g1 = self.c0.getArray(readonly=True)
             g2 = self.c1.getArray(readonly=True)
-            z1, z2 = x1 - self.alpha * g1, x2 - self.alpha * g2
+            if theta_model:
+                z1, z2, tau = x1, x2, np.zeros_like(lam)
+            else:
+                z1, z2, tau = x1 - self.alpha * g1, x2 - self.alpha * g2, self.alpha * lam
             nz = np.hypot(z1, z2)
-            tau = self.alpha * lam
             fric = lam > 0.0
             slip = fric & (nz > tau)
             stick = fric & ~slip
@@ -271,6 +282,20 @@ class SemismoothNewton(Loop):
                 self.ksp.setTolerances(rtol=rtol)
                 self.accurate_resolves += 1
                 t, theta_t, full = self._line_search(x, l, lam_a, theta)
+            if self.linesearch and not full and self._rejected(t, theta_t, theta) and \
+                    lam_a is not None and self._theta_newton(x, grad, p, l, lam_a, theta):
+                # the semismooth direction need not descend Theta (its slip model is that
+                # of the prox equation): the Newton step of Theta on the face where the
+                # stuck nodes stay stuck does; as for the proximal-gradient step below,
+                # the convergence test waits for the next semismooth step
+                x.swap(self.xt)
+                self.Ax.swap(self.Axt)
+                theta = self._theta_t
+                if it >= self.max_it:
+                    reason = DIVERGED_MAX_IT
+                self._monitor(it, self.residual, "  (Newton step of Theta on the stuck "
+                                                 "nodes' face)")
+                continue
             if self.linesearch and not full and self._rejected(t, theta_t, theta):
                 # dx is no (good) descent direction of Theta: take the proximal-gradient
                 # step 1/L instead, which decreases Theta; its length says nothing
@@ -297,6 +322,23 @@ class SemismoothNewton(Loop):
             self.first_iterations = it
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
+
+    def _theta_newton(self, x, grad, p, l, lam, theta):
+        """Try the Newton step of Theta with the nodes x_tau = 0 held stuck (_system's
+        theta_model); True when its line search decreases Theta (xt, Axt, _theta_t set).
+        The preconditioner is set up for it and again at the next semismooth step."""
+        K, rhs = self._system(x, grad, p, lam, theta_model=True)
+        self.ksp.setOperators(K)
+        self.ksp.getPC().setReusePreconditioner(False)
+        self._pc_sets, self._since_setup = None, 0
+        self.pc_setups += 1
+        self.ksp.solve(rhs, self.dx)
+        self.ksp_iterations += self.ksp.getIterationNumber()
+        self.theta_newton_steps += 1
+        if self.ksp.getConvergedReason() < 0:
+            return False
+        t, self._theta_t, full = self._line_search(x, l, lam, theta)
+        return full or not self._rejected(t, self._theta_t, theta)
 
     @staticmethod
     def _decrease(theta_t, theta):

@@ -2,11 +2,13 @@
 reaches the discrete solution of the independent conic solver (tests/reference_socp.py)."""
 import numpy as np
 import pytest
-from conftest import gather, only_in_parallel, paper_scene, rel_err, skip_in_parallel, solve
+from conftest import (block_scene, gather, only_in_parallel, paper_scene, rel_err,
+                      skip_in_parallel, solve)
 from petsc4py import PETSc
 from reference_socp import solve_coulomb, solve_tresca
 from test_reference import _discrete
 
+from contact import scene as scenes
 from contact.loop import ConvergenceError
 
 TIGHT = dict(uzawa_r=1e6, ssn_rtol=1e-13, uzawa_rtol=1e-11, fp_rtol=1e-10)
@@ -146,3 +148,23 @@ def test_step_within_rounding_is_not_rejected(comm):
     assert pr.converged and len(pr.step_log) == 5
     c_over_a = validate.analyse(pr, 0.0, 0.2)["c_over_a"]
     assert abs(c_over_a - 0.224) < 0.2 * 0.224
+
+
+@skip_in_parallel
+def test_theta_newton_step_where_the_semismooth_direction_ascends():
+    """A block held by friction alone under an oblique weight, with a stiff penalty
+    (r = 1e8 = 1e5 E): the semismooth direction stopped descending Theta near the answer,
+    and proximal-gradient steps of length 1/(r w) could not move it (DIVERGED_MAX_IT).
+    The Newton step of Theta on the stuck nodes' face descends; statics check the answer:
+    N = cos(20 deg) and the friction resultant sin(20 deg)."""
+    from contact import residuals as res
+    th, ph = np.radians(20.0), np.radians(10.0)
+    sc = block_scene({"contact": {"plane": ["z", 0.0], "type": "contact"}}, nd=4,
+                     friction=0.5, mode="fast")
+    sc["body_force"] = [np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), -np.cos(th)]
+    pr = solve(scenes.validate(sc), PETSc.COMM_SELF)
+    assert pr.converged and max(pr.residuals.values()) < 1e-3
+    assert pr.inner.theta_newton_steps > 0
+    assert abs(pr.normal_force() - np.cos(th)) < 1e-6
+    f = res.contact_fields(pr, pr.x)
+    assert abs(np.linalg.norm(f["R"][:, :2].sum(axis=0)) - np.sin(th)) < 1e-4
