@@ -14,7 +14,8 @@ Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives eac
 The system is SPD: KSP with prefix -ssn_ (default CG + GAMG, block size 3, rigid-body
 near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 -ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
-Theta (convex) globalises the step (-ssn_linesearch false: full steps). Where the
+Theta (convex; its changes computed term by term, free of cancellation) globalises the
+step (-ssn_linesearch false: full steps). Where the
 semismooth direction does not descend Theta (its slip model is the prox equation's, not
 Theta's), the Newton step of Theta on the face where the stuck nodes stay stuck is tried
 (it descends), then a proximal-gradient step.
@@ -74,8 +75,8 @@ class SemismoothNewton(Loop):
         #: contact holds the body and the active nodes alone do not (e.g. on one line)
         self.contact_spring = 0.0
         v = b.duplicate()                # the DM's Vec type, not the Mat's default
-        self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt = \
-            (v.duplicate() for _ in range(6))
+        self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt, self.Adx = \
+            (v.duplicate() for _ in range(7))
         v.destroy()
         self.K = None
         self.ksp = PETSc.KSP().create(comm=self.comm)
@@ -119,16 +120,6 @@ class SemismoothNewton(Loop):
             out.append(v.getArray(readonly=True).copy())
         la = l.getArray(readonly=True)
         return out[0], out[1], out[2], la - self.r * out[2]
-
-    def objective(self, x, Ax, l, lam):
-        """Theta(x) = 1/2 <Ax,x> - <b,x> + penalty + sum lambda_j |x_tau,j| (Ax given)."""
-        x1, x2, _, p = self._contact(x, l)
-        la = l.getArray(readonly=True)
-        loc = np.sum(self.w * (np.maximum(p, 0.0) ** 2 - la ** 2)) / (2.0 * self.r)
-        if lam is not None:
-            loc += np.sum(lam * np.hypot(x1, x2))
-        loc = self.comm.tompi4py().allreduce(loc)
-        return 0.5 * Ax.dot(x) - self.b.dot(x) + loc
 
     def _gradient(self, x, Ax, l):
         """grad G(x) = A x - b - w (l - r x3)^+ on the x3 dofs (Ax given)."""
@@ -240,7 +231,6 @@ class SemismoothNewton(Loop):
             lam_a = lam.getArray(readonly=True).copy()
         _EV_ITER.begin()
         self.A.mult(x, self.Ax)
-        theta = self.objective(x, self.Ax, l, lam_a)
         it, reason = 0, None
         while reason is None:
             it += 1
@@ -270,10 +260,9 @@ class SemismoothNewton(Loop):
                 self.residual = float("nan")
                 reason = DIVERGED_LINEAR_SOLVE
                 break
-            t, theta_t, full = self._line_search(x, l, lam_a, theta)
+            t, dtheta, full = self._line_search(x, l, lam_a)
             rtol = self.ksp.getTolerances()[0]
-            if self.linesearch and not full and rtol > 1e-10 and \
-                    self._rejected(t, theta_t, theta):
+            if self.linesearch and not full and rtol > 1e-10 and self._rejected(t, dtheta):
                 # an inexact Krylov solve may give no descent direction: solve it again
                 # a thousand times more accurately before giving up on Newton
                 self.ksp.setTolerances(rtol=max(1e-3 * rtol, 1e-12))
@@ -281,30 +270,28 @@ class SemismoothNewton(Loop):
                 self.ksp_iterations += self.ksp.getIterationNumber()
                 self.ksp.setTolerances(rtol=rtol)
                 self.accurate_resolves += 1
-                t, theta_t, full = self._line_search(x, l, lam_a, theta)
-            if self.linesearch and not full and self._rejected(t, theta_t, theta) and \
-                    lam_a is not None and self._theta_newton(x, grad, p, l, lam_a, theta):
+                t, dtheta, full = self._line_search(x, l, lam_a)
+            if self.linesearch and not full and self._rejected(t, dtheta) and \
+                    lam_a is not None and self._theta_newton(x, grad, p, l, lam_a):
                 # the semismooth direction need not descend Theta (its slip model is that
                 # of the prox equation): the Newton step of Theta on the face where the
                 # stuck nodes stay stuck does; as for the proximal-gradient step below,
                 # the convergence test waits for the next semismooth step
                 x.swap(self.xt)
                 self.Ax.swap(self.Axt)
-                theta = self._theta_t
                 if it >= self.max_it:
                     reason = DIVERGED_MAX_IT
                 self._monitor(it, self.residual, "  (Newton step of Theta on the stuck "
                                                  "nodes' face)")
                 continue
-            if self.linesearch and not full and self._rejected(t, theta_t, theta):
+            if self.linesearch and not full and self._rejected(t, dtheta):
                 # dx is no (good) descent direction of Theta: take the proximal-gradient
                 # step 1/L instead, which decreases Theta; its length says nothing
                 # about convergence, so the test waits for the next Newton step
-                theta_t = self._prox_gradient_step(x, grad, l, lam_a)
+                self._prox_gradient_step(x, grad, l, lam_a)
                 self.fallbacks += 1
                 x.swap(self.xt)
                 self.Ax.swap(self.Axt)
-                theta = theta_t
                 if it >= self.max_it:
                     reason = DIVERGED_MAX_IT
                 self._monitor(it, self.residual, "  (proximal-gradient step: Newton step "
@@ -313,7 +300,6 @@ class SemismoothNewton(Loop):
             change, norm = t * self.dx.norm(), self.xt.norm()
             x.swap(self.xt)
             self.Ax.swap(self.Axt)
-            theta = theta_t
             reason = self.test(it, change, norm)
             self._monitor(it, self.residual, f"  (KSP its {self.ksp.getIterationNumber()}, "
                                              f"step {t:g})")
@@ -323,9 +309,9 @@ class SemismoothNewton(Loop):
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
 
-    def _theta_newton(self, x, grad, p, l, lam, theta):
+    def _theta_newton(self, x, grad, p, l, lam):
         """Try the Newton step of Theta with the nodes x_tau = 0 held stuck (_system's
-        theta_model); True when its line search decreases Theta (xt, Axt, _theta_t set).
+        theta_model); True when its line search decreases Theta (xt, Axt set).
         The preconditioner is set up for it and again at the next semismooth step."""
         K, rhs = self._system(x, grad, p, lam, theta_model=True)
         self.ksp.setOperators(K)
@@ -337,44 +323,78 @@ class SemismoothNewton(Loop):
         self.theta_newton_steps += 1
         if self.ksp.getConvergedReason() < 0:
             return False
-        t, self._theta_t, full = self._line_search(x, l, lam, theta)
-        return full or not self._rejected(t, self._theta_t, theta)
+        t, dtheta, full = self._line_search(x, l, lam)
+        return full or not self._rejected(t, dtheta)
 
-    @staticmethod
-    def _decrease(theta_t, theta):
-        """Theta(x + t dx) <= Theta(x) up to the rounding of Theta."""
-        return theta_t <= theta + 1e-14 * abs(theta)
+    def _decrease(self, t, dtheta):
+        """Theta(x + t dx) < Theta(x), from the accurate change dtheta (`_change`); the
+        full step (t = 1) is taken also when the change is within its rounding (near the
+        solution a Newton step changes Theta by less than that, and rejecting it led to
+        null proximal-gradient steps until DIVERGED_MAX_IT). A cut step must decrease
+        Theta by more than the rounding: one that does not is too short to make progress
+        (the accurate re-solve, the Newton step of Theta or the proximal-gradient step
+        follow)."""
+        tol = 1e-13 * self._scale
+        return dtheta <= tol if t == 1.0 else dtheta < -tol
 
-    def _rejected(self, t, theta_t, theta):
-        """Whether the line search's step is no good: too short, or no decrease. The full
-        step (t = 1) is judged up to rounding, as the line search judged it: near the
-        solution a Newton step changes Theta by less than its rounding, and rejecting it
-        led to null proximal-gradient steps until DIVERGED_MAX_IT. A cut step (t < 1)
-        must decrease Theta strictly: one that stops only within rounding is too short to
-        make progress (the accurate re-solve or the proximal-gradient step follow)."""
-        if t < self.min_step:
-            return True
-        return not self._decrease(theta_t, theta) if t == 1.0 else theta_t > theta
+    def _rejected(self, t, dtheta):
+        """Whether the line search's step is no good: too short, or no decrease."""
+        return t < self.min_step or not self._decrease(t, dtheta)
 
-    def _line_search(self, x, l, lam, theta):
-        """Halve t from 1 until Theta(x + t dx) <= Theta(x) or t < min_step; xt, Axt hold
-        the last trial. Returns (t, Theta(xt), full): full = the step is below the
-        rounding of Theta (relative length < full_step_below) and is taken as it is."""
+    def _direction(self, x, l, lam):
+        """What `_change` needs of dx at x: <dx, Ax - b>, <dx, A dx> (A dx in Adx), the
+        contact arrays of x and dx, and S = l - r x3."""
+        self.A.mult(self.dx, self.Adx)
+        g0 = self.dx.dot(self.Ax) - self.dx.dot(self.b)
+        q = self.dx.dot(self.Adx)
+        x1, x2, _, S = self._contact(x, l)
+        d1, d2, d3, _ = self._contact(self.dx, l)
+        self._dir = (g0, q, x1, x2, S, d1, d2, d3, lam)
+
+    def _change(self, t):
+        """Theta(x + t dx) - Theta(x) term by term, free of the cancellation of two Theta
+        values: t <dx, Ax - b> + t^2/2 <dx, A dx>; the penalty's w/(2r) E (E + 2 S^+),
+        E = (S + D)^+ - S^+ = max(D + min(S, 0), -S^+), D = -r t dx3; friction's
+        lambda <e, 2 x_tau + e> / (|x_tau + e| + |x_tau|), e = t dx_tau. Sets _scale (the
+        sum of the terms' magnitudes: the change's rounding is about 1e-16 of it)."""
+        g0, q, x1, x2, S, d1, d2, d3, lam = self._dir
+        P = np.maximum(S, 0.0)
+        E = np.maximum(-self.r * t * d3 + np.minimum(S, 0.0), -P)
+        pen = self.w * E * (E + 2.0 * P) / (2.0 * self.r)
+        loc = np.array([pen.sum(), np.abs(pen).sum()])
+        if lam is not None:
+            e1, e2 = t * d1, t * d2
+            num = e1 * (2.0 * x1 + e1) + e2 * (2.0 * x2 + e2)
+            den = np.hypot(x1 + e1, x2 + e2) + np.hypot(x1, x2)
+            fr = lam * num / np.where(den > 0.0, den, 1.0)
+            loc += [fr.sum(), np.abs(fr).sum()]
+        loc = self.comm.tompi4py().allreduce(loc)
+        el, el2 = t * g0, 0.5 * t * t * q
+        self._scale = abs(el) + abs(el2) + loc[1]
+        return el + el2 + loc[0]
+
+    def _line_search(self, x, l, lam):
+        """Halve t from 1 until Theta(x + t dx) < Theta(x) (`_decrease`) or t < min_step;
+        xt, Axt hold the last trial. Returns (t, Theta(xt) - Theta(x), full): full = the
+        step is below the rounding of Theta (relative length < full_step_below) and is
+        taken as it is."""
         full = self.dx.norm() <= self.full_step_below * max(x.norm(), 1e-300)
+        self._direction(x, l, lam)
         t = 1.0
         while True:
-            self.xt.waxpy(t, self.dx, x)
-            self.A.mult(self.xt, self.Axt)
-            theta_t = self.objective(self.xt, self.Axt, l, lam)
-            if not self.linesearch or full or self._decrease(theta_t, theta) \
+            dtheta = self._change(t)
+            if not self.linesearch or full or self._decrease(t, dtheta) \
                     or t < self.min_step:
-                return t, theta_t, full
+                break
             t *= 0.5
             self.line_search_cuts += 1
+        self.xt.waxpy(t, self.dx, x)
+        self.A.mult(self.xt, self.Axt)
+        return t, dtheta, full
 
     def _prox_gradient_step(self, x, grad, l, lam):
         """xt <- prox_{lam |.|/L}(x - grad / L), L = ||A||_inf + r max w >= the Lipschitz
-        constant of grad G: Theta(xt) <= Theta(x). Returns Theta(xt) (Axt set)."""
+        constant of grad G: Theta(xt) <= Theta(x) (Axt set)."""
         if self.L_G is None:
             wmax = self.comm.tompi4py().allreduce(float(self.w.max(initial=0.0)), op=MPI.MAX)
             self.L_G = self.A.norm(PETSc.NormType.INFINITY) + self.r * wmax
@@ -383,7 +403,6 @@ class SemismoothNewton(Loop):
             self.c2.setArray(lam / self.L_G)
             self.cs.shrink_tangential(self.xt, self.c2)
         self.A.mult(self.xt, self.Axt)
-        return self.objective(self.xt, self.Axt, l, lam)
 
     def _ksp_hint(self):
         """Why the linear solve failed, in PETSc's words, and what to try."""
