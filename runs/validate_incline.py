@@ -98,6 +98,31 @@ def measure_beam(nd, mode):
             "its": (a.iterations(), b.iterations()), "time": (ta, tb)}
 
 
+def plot(rows, F, path):
+    """Stick fraction and the resultants' ratios against tan(theta) / F."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    held = [(np.tan(np.radians(t)) / F, r) for t, r in rows if r["outcome"] == "held"]
+    refused = [np.tan(np.radians(t)) / F for t, r in rows if r["outcome"] != "held"]
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.8))
+    x = [h[0] for h in held]
+    a1.plot(x, [h[1]["stick"] for h in held], "o-")
+    a1.set_ylabel("fraction of contact nodes that stick")
+    a2.plot(x, [h[1]["N"] for h in held], "o-", label="N / cos(theta)")
+    a2.plot(x, [h[1]["T"] for h in held], "s--", label="|R_tau| / sin(theta)")
+    a2.set_ylim(0.99, 1.01)
+    a2.legend()
+    for ax in (a1, a2):
+        ax.axvline(1.0, color="k", lw=0.8)
+        for b in refused:
+            ax.axvspan(b - 0.01, b + 0.01, color="r", alpha=0.3)
+        ax.set_xlabel("tan(theta) / F   (statics: slides beyond 1; red: run refused)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nd", type=int, default=8)
@@ -115,6 +140,9 @@ def main():
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True, cwd=HERE).stdout.strip()
     F = scenes.load(SCENE)["contact"]["friction"]
+    outdir = os.path.join(os.path.dirname(args.out), "validation")
+    os.makedirs(outdir, exist_ok=True)
+    plot(rows, F, os.path.join(outdir, "incline.png"))
     L = ["# Validation: foundations off the coordinate axes", "",
          f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
          f"{datetime.date.today()}, commit {commit}, PETSc "
@@ -144,6 +172,8 @@ def main():
                      f"{r['stick']:.2f} | {r['fp']} | {r['residual']:.1e} | {r['time']:.1f} |")
         else:
             L.append(pre + f"| refused | - | - | - | - | - | - | {r['time']:.1f} |")
+    L += ["", "![stick fraction and resultants against tan(theta) / F]"
+          "(validation/incline.png)"]
     refused = [r for _, r in rows if r["outcome"] != "held"]
     if refused:
         L += ["", f"Message of a refused run: `{refused[0]['message']}`"]
