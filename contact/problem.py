@@ -257,11 +257,14 @@ class ContactProblem:
         cpts = self.cs.coordinates if self.cs is not None else None
         n = self.normal
         free, Q, frame = fem.free_rigid_modes(self.coordinates, self.clamped_xyz, cpts, n)
+        # the motions the dirichlet parts alone leave free (the foundation aside)
+        unheld = fem.free_rigid_modes(self.coordinates, self.clamped_xyz) if cpts is not None \
+            else None
         if free:
             tangential = cpts is not None and fem.tangential_modes(Q, n)
             if tangential and self.cs.has_friction:
                 self.friction_held = (Q, frame)
-                self._check_friction_statics(Q)
+                self._check_friction_statics(Q, unheld[1])
             else:
                 held = ""
                 if cpts is not None:
@@ -273,7 +276,7 @@ class ContactProblem:
                                  "more components or parts")
         if cpts is None:
             return
-        free, Q, frame = fem.free_rigid_modes(self.coordinates, self.clamped_xyz)
+        free, Q, frame = unheld
         if free:
             b = self.to_xyz(self.b)
             lifts = fem.load_lifts_off(self.coordinates, b, Q, frame, cpts, n)
@@ -284,9 +287,10 @@ class ContactProblem:
                                  " free otherwise) and the load pulls it away: no "
                                  "equilibrium")
 
-    def _check_friction_statics(self, Q):
+    def _check_friction_statics(self, Q, Q0):
         """Statics of a rigid block, at every load step: where nothing but the foundation
-        holds the body (normal translation free without it), the tangential load resultant
+        holds the body (normal translation in span Q0, the motions the dirichlet parts
+        leave free), the tangential load resultant
         T along the free translations (those in span Q, the motions friction must hold)
         must not exceed F_max N, N the normal load pressing the body on the foundation;
         otherwise the body slides (no static equilibrium). Necessary, not sufficient
@@ -294,7 +298,6 @@ class ContactProblem:
         if not PETSc.Options().getBool("statics_check", True):
             return
         n = self.normal
-        Q0 = fem.free_rigid_modes(self.coordinates, self.clamped_xyz)[1]
         e_n = np.r_[n, 0.0, 0.0, 0.0]
         if np.linalg.norm(e_n - Q0 @ (Q0.T @ e_n)) > 1e-6:
             return                               # a dirichlet part takes normal load: N unknown
