@@ -9,7 +9,7 @@
 2. Coulomb friction, incremental (Spence's problem): the stick-zone radius c / a after
    monotonic loading in increments, for two Poisson ratios and two friction
    coefficients, beside the one-step static answer; against the half-space
-   boundary-element reference of runs/halfspace_bem.py where it exists.
+   boundary-element reference of contact/validation/halfspace_bem.py where it exists.
 
 Usage: python runs/validate.py [--quick] [--nds 2,4,6] (entry point: initialises PETSc).
 """
@@ -30,10 +30,9 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-import contact_theory as th  # noqa: E402
 
 from contact import residuals as res, scene as scenes  # noqa: E402
+from contact.validation import theory as th  # noqa: E402
 from contact.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 
@@ -166,9 +165,9 @@ def spence_study(nd, steps, cases, d=0.04):
 
 
 def bem_reference(cases):
-    """c / a from the half-space BEM of runs/halfspace_bem.py, if it is there."""
+    """c / a from the half-space BEM of contact/validation/halfspace_bem.py, if it is there."""
     try:
-        import halfspace_bem as bem
+        from contact.validation import halfspace_bem as bem
     except ImportError:
         return {}
     out = {}
@@ -239,7 +238,7 @@ def _hertz_section(rows):
     L = ["## Hertz, frictionless (nu = 0.3)",
          "",
          "a and p0: least-squares fit of p^2 = p0^2 (1 - r^2/a^2) to the nodal pressures "
-         "(runs/contact_theory.py); Hertz values at the computed force P "
+         "(contact/validation/theory.py); Hertz values at the computed force P "
          "(a = (3PR/4E*)^(1/3), p0 = 3P/(2 pi a^2)). Force: Hertz P(delta) = 4/3 E* "
          "R^(1/2) delta^(3/2) with delta = d + w(H), w(H) the half-space's "
          "displacement at the block's clamped depth H = 8 (Boussinesq, on the axis): a "
@@ -310,7 +309,7 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
               "environment (no copy in the stored material; no network), so the column "
               "'Spence' is empty and the 5% target is NOT checked against it. The "
               "independent reference is a half-space boundary-element solution of the "
-              "same incremental problem (runs/halfspace_bem.py) where available.",
+              "same incremental problem (contact/validation/halfspace_bem.py) where available.",
               "",
               "| nu | F | beta/F | c/a incremental | c/a one-step static | c/a BEM | "
               "Spence | a (area) | stick nodes | max residual | time incr., s |",
@@ -348,7 +347,7 @@ def main():
     ap.add_argument("--spence-only", action="store_true",
                     help="only the frictional stick-zone study (use another --out)")
     ap.add_argument("--bem", action="store_true",
-                    help="also run the half-space BEM reference (runs/halfspace_bem.py)")
+                    help="also run the half-space BEM reference (contact/validation/halfspace_bem.py)")
     ap.add_argument("--out", default=os.path.join(OUT, "validation.md"))
     args = ap.parse_args()
     if args.quick:

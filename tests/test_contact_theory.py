@@ -1,17 +1,13 @@
-"""Checks of runs/contact_theory.py (closed-form contact references) against independent
+"""Checks of contact/validation/theory.py (closed-form contact references) against independent
 numbers: quadrature of the pressure, point-load (Boussinesq) superposition done here by
 numerical integration, and exact identities.  Pure numpy/scipy; every rank runs it alone."""
 import math
-import os
-import sys
 
 import numpy as np
 import pytest
 from scipy import integrate
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                                "runs"))
-import contact_theory as ct  # noqa: E402
+from contact.validation import theory as ct
 
 E, NU, R, P = 1.0e3, 0.3, 10.0, 2.0
 

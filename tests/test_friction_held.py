@@ -13,7 +13,7 @@ import pytest
 from conftest import (block_scene, gather, only_in_parallel, rel_err, skip_in_parallel,
                       solve)
 from petsc4py import PETSc
-from reference_socp import solve_coulomb
+from contact.validation.socp import solve_coulomb
 from test_reference import _discrete
 
 from contact import scene as scenes

@@ -1,19 +1,15 @@
-"""Checks of runs/halfspace_bem.py, the half-space boundary-element reference for Spence's
+"""Checks of contact/validation/halfspace_bem.py, the half-space boundary-element reference for Spence's
 frictional Hertz problem: influence coefficients against quadrature of the point-load
 Green's functions, reciprocity, the quarter-symmetry reduction, closed-form punch / Hertz
 solutions, and the stick-zone behaviour (nu = 1/2: no slip; c/a grows with f).
 Pure numpy/scipy on small grids; every rank runs it alone."""
 import math
-import os
-import sys
 
 import numpy as np
 import pytest
 from scipy import integrate
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                                "runs"))
-import halfspace_bem as hb  # noqa: E402
+from contact.validation import halfspace_bem as hb
 
 E, NU = 1.0, 0.3
 G = E / (2 * (1 + NU))
@@ -214,7 +210,7 @@ def test_incompressible_half_space_never_slips():
 def test_stick_ratio_grows_with_friction_and_conditions_hold():
     """nu = 0 (beta = 1/2), coarse grid: c/a = 0 without friction, then strictly
     increasing with f, close to 1 for beta/f -> 0; every condition satisfied.  (Converged
-    values, runs/halfspace_bem.py: 0.225, 0.617, 0.815, 0.998 for f = 0.2, 0.35, 0.5, 5.)"""
+    values, contact/validation/halfspace_bem.py: 0.225, 0.617, 0.815, 0.998 for f = 0.2, 0.35, 0.5, 5.)"""
     vals = []
     for f in (0.0, 0.2, 0.35, 0.5, 5.0):
         ca, a, d = hb.stick_ratio(0.0, f, n=28, steps=20)

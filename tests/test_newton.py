@@ -1,11 +1,11 @@
 """Semismooth Newton inner solver, warm starts, inexact loops and the fast preset: each
-reaches the discrete solution of the independent conic solver (tests/reference_socp.py)."""
+reaches the discrete solution of the independent conic solver (contact/validation/socp.py)."""
 import numpy as np
 import pytest
 from conftest import (block_scene, gather, only_in_parallel, paper_scene, rel_err,
                       skip_in_parallel, solve)
 from petsc4py import PETSc
-from reference_socp import solve_coulomb, solve_tresca
+from contact.validation.socp import solve_coulomb, solve_tresca
 from test_reference import _discrete
 
 from contact import scene as scenes
@@ -136,7 +136,7 @@ def test_step_within_rounding_is_not_rejected(comm):
     the fallback test must agree. It used to reject such a step, take a null
     proximal-gradient step, and repeat until DIVERGED_MAX_IT (Spence's problem, nu = 0,
     F = 0.2, 5 increments, nd = 4, in the fast preset). The stick zone it gives is checked
-    against the independent half-space BEM value c/a = 0.224 (runs/halfspace_bem.py,
+    against the independent half-space BEM value c/a = 0.224 (contact/validation/halfspace_bem.py,
     runs/results/validation.md) to the resolution of this mesh (h/a about 0.2)."""
     import os
     import sys

@@ -1,11 +1,11 @@
 """Our fixed point + Uzawa + APG against an independent interior-point conic solver
-(tests/reference_socp.py: Clarabel + active-set polish) on the same discrete problem."""
+(contact/validation/socp.py: Clarabel + active-set polish) on the same discrete problem."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
 from conftest import paper_scene, rel_err, solve
 from petsc4py import PETSc
-from reference_socp import solve_coulomb, solve_tresca
+from contact.validation.socp import solve_coulomb, solve_tresca
 
 
 def _discrete(pr):

@@ -1,17 +1,14 @@
-"""Self-checks of the Clarabel reference solver (tests/reference_socp.py).
+"""Self-checks of the Clarabel reference solver (contact/validation/socp.py).
 
 Serial only (no MPI imports): under ``mpirun -n 2`` every rank repeats them.
 """
-import os
-import sys
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import reference_socp  # noqa: E402
-from reference_socp import solve_coulomb, solve_tresca  # noqa: E402
+from contact.validation import socp as reference_socp
+from contact.validation.socp import solve_coulomb, solve_tresca
 
 NN, M = 10, 4                          # nodes, contact nodes 0..3
 N = 3 * NN

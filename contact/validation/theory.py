@@ -281,7 +281,7 @@ def spence_stick_ratio(nu, f, table=None):
     if len(tab) == 0:
         raise SpenceDataUnavailable(
             f"no published value of Spence's c/a for beta/f = {x:.4g}: the table of "
-            "published values is empty (see runs/contact_theory.py)")
+            "published values is empty (see contact/validation/theory.py)")
     return float(_spence_interpolant(tuple(map(tuple, tab)))(x))
 
 

@@ -9,7 +9,7 @@ different from the project's finite elements: a Kalker-type half-space BEM (the 
 Kalker's CONTACT, Vollebregt & Kalker), i.e. exact half-space influence coefficients on a
 uniform grid of square elements with piecewise-constant tractions.
 
-Pure numpy/scipy; no PETSc/MPI.  CLI:  python runs/halfspace_bem.py --nu 0.3 --f 0.3 --n 40
+Pure numpy/scipy; no PETSc/MPI.  CLI:  python contact/validation/halfspace_bem.py --nu 0.3 --f 0.3 --n 40
 --steps 30 ; grid study:  --study 30,45,60 .
 
 Conventions
