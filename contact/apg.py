@@ -1,17 +1,13 @@
 """Accelerated proximal gradient (FISTA) for the Uzawa subproblem  min_x Theta = G + H.
 
-G(x) = 1/2 <Ax,x> - <b,x> + 1/(2r) sum_j w_j [((l_j + r x_j.nu)^+)^2 - l_j^2]   (smooth)
-H(x) = sum_j lambda_j ||x_j,tau||,  lambda_j = F_j g_j w_j                       (prox-able)
-
-grad G(x) = A x - b + sum_j w_j (l_j + r x_j.nu)^+ nu_j ;  with nu = (0,0,-1) the
-contact term is  -w_j (l_j - r x_j3)^+  on the x3 dof of node j.
+G, H, grad G, the prox, the Lipschitz bounds and the cancellation-free changes of Theta are
+the subproblem's (contact/subproblem.py); this module holds only the iteration.
 
 Iteration (the paper's, Beck-Teboulle momentum):
     y   = x^(i-1) + (i-2)/(i+1) (x^(i-1) - x^(i-2))
     x^i = prox_{alpha H}(y - alpha grad G(y)),  alpha = 1/L,
     prox of alpha*lambda_j ||.|| on R^2:  v -> (1 - alpha lambda_j / ||v||)^+ v.
-L = L_A + r max_j w_j, where L_A >= lambda_max(A) is min(margin * power-iteration
-estimate, Gershgorin bound ||A||_inf). Stop when ||x^i - x^(i-1)|| / ||x^i|| < rtol.
+L = L_A + r max_j w_j (Subproblem.lipschitz). Stop when ||x^i - x^(i-1)|| / ||x^i|| < rtol.
 All work is PETSc Vec/Mat operations on whole vectors plus VecScatters to contact space.
 The defaults below are exactly that iteration (the paper's); the variants are options:
 
@@ -55,13 +51,11 @@ all solve iterations (the Lipschitz estimates not included). The class attribute
 """
 import math
 
-import numpy as np
 from petsc4py import PETSc
 
 from .loop import Loop
 
 _EV_ITER = PETSc.Log.Event("APG iterations")
-_EV_LIP = PETSc.Log.Event("APG Lipschitz")
 
 METRICS = ("scalar", "diagonal")
 RESTARTS = ("none", "gradient", "function")
@@ -69,70 +63,44 @@ STEPS = ("fixed", "backtracking")
 
 
 class APG(Loop):
-    """FISTA on the displacement; options prefix ``-apg_``."""
+    """FISTA on the displacement; options prefix ``-apg_``. `solve(sub, x)` minimises the
+    subproblem `sub` (contact/subproblem.py) from x."""
 
     prefix = "apg_"
-    options = ("lipschitz_its", "lipschitz_margin", "metric", "restart", "step",
-               "backtrack_shrink", "backtrack_factor", "backtrack_decrease")
     name = "apg"
     title = "APG"
     indent = 4
     hint = "raise -apg_max_it, or loosen -apg_rtol"
+    ksp_iterations = 0               # no linear solves
     ay_by_linearity = True           # A y from A x^(i-1), A x^(i-2) (False: a MatMult; check)
 
-    def __init__(self, A, b, cset, r, rtol=1e-8, max_it=1000000):
-        super().__init__(A.getComm(), rtol, max_it)
-        self.A, self.b, self.cs, self.r = A, b, cset, float(r)
-        self.lipschitz_its = 100
-        self.lipschitz_margin = 1.1
-        self.metric = "scalar"
-        self.restart = "none"
-        self.step = "fixed"
-        self.backtrack_shrink = 4.0
-        self.backtrack_factor = 2.0
-        self.backtrack_decrease = 0.95
+    def __init__(self, comm):
+        super().__init__(comm)
         self.restarts = 0
         self.backtracks = 0              # rejected backtracking trials, over all calls
         self.matmults = 0                # MatMults of the iterations, over all calls
-        self.L_A = None
         self.L_S = None                  # lambda_max bound of diag(A)^-1/2 A diag(A)^-1/2
         self.L_local = None              # backtracking: last accepted local constant
-        self.first_iterations = None     # of the very first call (Table 1's column)
+        self.sub = None                  # the subproblem of the last call
         self._metric_vecs = None         # diagonal metric: (D, 1/D, tangential 1/D)
-        v = b.duplicate()                # the DM's Vec type, not the Mat's default
-        self.y, self.grad, self.xnew, self.d = (v.duplicate() for _ in range(4))
         self._ax = None                  # vectors of the A x path, made on first use
-        v.destroy()
-        c = cset
-        self.cz, self.s, self.t1, self.t2, self.thr = (c.vec() for _ in range(5))
-        self._cw = None                  # contact work vectors of the variants
 
-    def set_from_options(self):
-        super().set_from_options()
-        o = PETSc.Options(self.prefix)
-        self.lipschitz_its = o.getInt("lipschitz_its", self.lipschitz_its)
-        self.lipschitz_margin = o.getReal("lipschitz_margin", self.lipschitz_margin)
+    def check_options(self):
         if self.lipschitz_margin < 1.0:
             raise ValueError("-apg_lipschitz_margin must be >= 1")
-        self.metric = o.getString("metric", self.metric)
         if self.metric not in METRICS:
             raise ValueError(f"-apg_metric must be scalar or diagonal, got {self.metric!r}")
-        self.restart = o.getString("restart", self.restart)
         if self.restart not in RESTARTS:
             raise ValueError(f"-apg_restart must be none, gradient or function, "
                              f"got {self.restart!r}")
-        self.step = o.getString("step", self.step)
         if self.step not in STEPS:
             raise ValueError(f"-apg_step must be fixed or backtracking, got {self.step!r}")
-        self.backtrack_shrink = o.getReal("backtrack_shrink", self.backtrack_shrink)
         if not (self.backtrack_shrink >= 1.0 and math.isfinite(self.backtrack_shrink)):
             raise ValueError(f"-apg_backtrack_shrink must be a number >= 1, "
                              f"got {self.backtrack_shrink}")
-        self.backtrack_factor = o.getReal("backtrack_factor", self.backtrack_factor)
         if not (self.backtrack_factor > 1.0 and math.isfinite(self.backtrack_factor)):
             raise ValueError(f"-apg_backtrack_factor must be a number > 1, "
                              f"got {self.backtrack_factor}")
-        self.backtrack_decrease = o.getReal("backtrack_decrease", self.backtrack_decrease)
         if not 0.0 < self.backtrack_decrease <= 1.0:
             raise ValueError(f"-apg_backtrack_decrease must be in (0, 1], "
                              f"got {self.backtrack_decrease}")
@@ -140,79 +108,31 @@ class APG(Loop):
             raise ValueError("-apg_step backtracking needs -apg_metric scalar "
                              f"(got -apg_metric {self.metric})")
 
-    # -- Lipschitz constants and the metric ----------------------------------------------
-    def _power_iteration(self, apply):
-        """Power-iteration estimate of lambda_max of the SPD operator `apply(v, out)`."""
-        v = self.b.duplicate()
-        lo, hi = v.getOwnershipRange()
-        v.setArray(np.sin(0.7 * np.arange(lo, hi) + 0.3) + 1.1)    # same on any rank count
-        w = v.duplicate()
-        lam = 0.0
-        for _ in range(self.lipschitz_its):
-            v.normalize()
-            apply(v, w)
-            lam = v.dot(w)
-            v, w = w, v
-        v.destroy()
-        w.destroy()
-        return lam
-
-    def estimate_lipschitz(self):
-        """L_A >= lambda_max(A): min(margin * power iteration, ||A||_inf)."""
-        _EV_LIP.begin()
-        A = self.A
-        lam = self._power_iteration(A.mult)
-        gersh = A.norm(PETSc.NormType.INFINITY)
-        self.L_A = min(self.lipschitz_margin * lam, gersh) if lam > 0 else gersh
-        _EV_LIP.end()
-        return self.L_A
+    def _bind(self, sub):
+        """Work vectors of the subproblem's types (the DM's Vec type) on the first call."""
+        if self.sub is None:
+            v = sub.b
+            self.y, self.grad, self.xnew, self.d = (v.duplicate() for _ in range(4))
+            self.thr = sub.cs.vec()
+        self.sub = sub
+        sub.lipschitz_its, sub.lipschitz_margin = self.lipschitz_its, self.lipschitz_margin
 
     def lipschitz(self):
-        if self.L_A is None:
-            self.estimate_lipschitz()
-        wmax = self.cs.w.max()[1] if self.cs.size else 0.0
-        return self.L_A + self.r * wmax
-
-    def estimate_lipschitz_scaled(self):
-        """L_S >= lambda_max(S), S = diag(A)^-1/2 A diag(A)^-1/2: min(margin * power
-        iteration, ||S||_inf). Returns (L_S, diag(A))."""
-        _EV_LIP.begin()
-        A = self.A
-        dA = A.getDiagonal(self.b.duplicate())
-        if not dA.min()[1] > 0.0:
-            raise ValueError("-apg_metric diagonal needs a positive diagonal of A")
-        h = dA.copy()
-        h.sqrtabs()
-        h.reciprocal()                                     # diag(A)^-1/2
-        t = dA.duplicate()
-
-        def apply(v, out):
-            t.pointwiseMult(h, v)
-            A.mult(t, out)
-            out.pointwiseMult(out, h)
-
-        lam = self._power_iteration(apply)
-        S = A.duplicate(copy=True)
-        S.diagonalScale(h, h)
-        gersh = S.norm(PETSc.NormType.INFINITY)
-        S.destroy()
-        h.destroy()
-        t.destroy()
-        self.L_S = min(self.lipschitz_margin * lam, gersh) if lam > 0 else gersh
-        _EV_LIP.end()
-        return self.L_S, dA
+        """L = L_A + r max w of the last subproblem (the scalar step is 1/L)."""
+        return self.sub.lipschitz()
 
     def diagonal_metric(self):
         """(D, 1/D, 1/D_tau): D = L_S diag(A) + r w on the x3 contact dofs, the tangential
         pair of a contact node set to the larger of its two values (D_tau, contact Vec)."""
         if self._metric_vecs is None:
-            L_S, D = self.estimate_lipschitz_scaled()
-            D.scale(L_S)
-            cs = self.cs
+            sub = self.sub
+            self.L_S, D = sub.scaled_lipschitz()
+            D.scale(self.L_S)
+            cs = sub.cs
             dtau = cs.vec()
             if cs.size:
                 pen = cs.vec()
-                pen.axpy(self.r, cs.w)
+                pen.axpy(sub.r, cs.w)
                 cs.scatter(pen, D, 2, mode=PETSc.InsertMode.ADD_VALUES)
                 pen.destroy()
                 t2 = cs.vec()
@@ -228,143 +148,66 @@ class APG(Loop):
             self._metric_vecs = (D, alpha, dtau)
         return self._metric_vecs
 
-    # -- pieces of an iteration ----------------------------------------------------------
-    def gradient(self, y, l, out, Ay=None, s_keep=None):
-        """out = grad G(y) = A y - b - w (l - r y3)^+ on the x3 dofs.
-
-        Ay: A y if known (no MatMult); s_keep: contact Vec receiving l - r y3."""
-        if Ay is None:
-            self.A.mult(y, out)
-            out.axpy(-1.0, self.b)
-        else:
-            out.waxpy(-1.0, self.b, Ay)
-        cs = self.cs
-        if cs.size:
-            cs.gather(y, self.cz, 2)
-            self.s.waxpy(-self.r, self.cz, l)            # l + r u_nu, u_nu = -y3
-            if s_keep is not None:
-                self.s.copy(s_keep)
-            self.s.pointwiseMax(self.s, cs.zero)
-            self.s.pointwiseMult(self.s, cs.w)
-            self.s.scale(-1.0)
-            cs.scatter(self.s, out, 2, mode=PETSc.InsertMode.ADD_VALUES)
-        return out
-
-    def _contact_work(self):
-        if self._cw is None:
-            self._cw = [self.cs.vec() for _ in range(11)]
-        return self._cw
-
-    def _penalty_change(self, S, delta, E, P, Q):
-        """E = (S + delta)^+ - S^+ = max(delta + min(S,0), -max(S,0)) (accurate for small
-        delta), P = S^+; contact Vecs, S and delta unchanged, Q work."""
-        cs = self.cs
-        Q.pointwiseMin(S, cs.zero)
-        Q.axpy(1.0, delta)                                 # delta + S^-
-        P.pointwiseMax(S, cs.zero)                         # S^+
-        E.waxpy(-2.0, P, P)                                # -S^+
-        E.pointwiseMax(Q, E)
-
-    def _penalty_bregman(self, S, dd):
-        """sum_j of phi_j(y+dd) - phi_j(y) - phi_j'(y) dd, phi_j the penalty of node j, with
-        S = l - r y3: w/(2r) [E^2 + 2 S^+ (-(S + Delta))^+], Delta = -r dd3."""
-        cs = self.cs
-        if not cs.size:
-            return 0.0
-        delta, E, P, Q, C = self._contact_work()[:5]
-        cs.gather(dd, delta, 2)
-        delta.scale(-self.r)
-        self._penalty_change(S, delta, E, P, Q)
-        C.waxpy(1.0, S, delta)
-        C.scale(-1.0)
-        C.pointwiseMax(C, cs.zero)                         # (-(S + Delta))^+
-        C.pointwiseMult(C, P)
-        E.pointwiseMult(E, E)
-        E.axpy(2.0, C)
-        return E.dot(cs.w) / (2.0 * self.r)
-
-    def _theta_change(self, xnew, d, Ax, Axn, l, lam, S_old, S_new, nrm_old, nrm_new):
-        """Theta(xnew) - Theta(xnew - d), from d (no cancellation of Theta values).
-
-        S_old = l - r x3 of the old iterate (in), S_new of xnew (out); nrm_old, nrm_new the
-        tangential norms (in, out)."""
-        w = self.y                                         # free after the step
-        w.waxpy(1.0, Ax, Axn)
-        w.axpy(-2.0, self.b)                               # A(x + x_old) - 2 b
-        dq = 0.5 * w.dot(d)
-        cs = self.cs
-        if not cs.size:
-            return dq
-        delta, E, P, Q, C, T = self._contact_work()[:6]
-        cs.gather(d, delta, 2)
-        delta.scale(-self.r)                               # S_new - S_old
-        self._penalty_change(S_old, delta, E, P, Q)        # E = S_new^+ - S_old^+
-        cs.gather(xnew, C, 2)
-        S_new.waxpy(-self.r, C, l)
-        Q.pointwiseMax(S_new, cs.zero)
-        Q.axpy(1.0, P)                                     # S_new^+ + S_old^+
-        E.pointwiseMult(E, Q)
-        dq += E.dot(cs.w) / (2.0 * self.r)
-        if lam is not None:
-            # ||a|| - ||a - d_tau|| = <d_tau, 2a - d_tau> / (||a|| + ||a - d_tau||)
-            cs.tangential_norm(xnew, P, Q, nrm_new)
-            num = E
-            cs.gather(d, C, 0)
-            T.waxpy(-0.5, C, P)                            # a1 - d1/2
-            num.pointwiseMult(C, T)
-            cs.gather(d, C, 1)
-            T.waxpy(-0.5, C, Q)
-            T.pointwiseMult(C, T)
-            num.axpy(1.0, T)
-            num.scale(2.0)
-            T.waxpy(1.0, nrm_new, nrm_old)
-            T.shift(1e-300)
-            num.pointwiseDivide(num, T)
-            dq += num.dot(lam)
-        return dq
-
-    def _y_and_gradient(self, x, d, Ax, Axp, Ay, beta, l, linear, s_keep):
+    def _y_and_gradient(self, x, d, Ax, Axp, Ay, beta, linear, S):
         """y = x + beta d, Ay = A y (by linearity, or a MatMult), grad = grad G(y)."""
         self.y.waxpy(beta, d, x)
         if linear:
             Ay.waxpy(-1.0, Axp, Ax)                        # A (x^(i-1) - x^(i-2))
             Ay.aypx(beta, Ax)
         else:
-            self.A.mult(self.y, Ay)
-        self.gradient(self.y, l, self.grad, Ay, s_keep)
+            self.sub.A.mult(self.y, Ay)
+        self.sub.gradient(self.y, self.grad, Ay, S)
+
+    def _step(self, y, alpha, xnew):
+        """xnew = prox(y - alpha grad): a scalar step, or the diagonal metric's."""
+        sub, grad = self.sub, self.grad
+        if self.metric == "diagonal":
+            _, alpha_v, _ = self.diagonal_metric()
+            xnew.pointwiseMult(alpha_v, grad)
+            xnew.aypx(-1.0, y)                             # y - D^-1 grad
+            if sub.has_prox:
+                sub.prox(xnew, self.thr)
+        else:
+            xnew.waxpy(-alpha, grad, y)
+            if sub.has_prox:
+                sub.prox(xnew, self.thr)
+
+    def _gradient_restart(self, y, xnew, d):
+        """O'Donoghue-Candes gradient test <D (y - x^i), x^i - x^(i-1)> > 0 (grad is free)."""
+        g = self.grad
+        g.waxpy(-1.0, xnew, y)
+        if self.metric == "diagonal":
+            g.pointwiseMult(g, self.diagonal_metric()[0])
+        return g.dot(d) > 0.0
 
     # -- the solve -----------------------------------------------------------------------
-    def solve(self, x, l, lam):
-        """Minimise Theta from the start x (overwritten with the minimiser).
-
-        l: Uzawa multiplier (contact Vec); lam: lambda_j = F_j g_j w_j (contact Vec) or None.
-        """
-        use_prox = bool(lam is not None and self.cs.size
-                        and lam.norm(PETSc.NormType.INFINITY) > 0)
+    def solve(self, sub, x, rtol=None):
+        """Minimise Theta of `sub` from the start x (overwritten with the minimiser); rtol:
+        a looser tolerance for this call (an outer loop's inexact mode), else -apg_rtol."""
+        self._bind(sub)
+        self.begin(rtol)
+        alpha = None
+        if self.metric == "diagonal":
+            if sub.has_prox:
+                sub.thresholds(self.diagonal_metric()[2], self.thr)
+        elif self.step != "backtracking":
+            alpha = 1.0 / sub.lipschitz()
+            if sub.has_prox:
+                sub.thresholds(alpha, self.thr)
         if self.restart == "function" or self.step == "backtracking":
-            it, reason = self._solve_ax(x, l, lam if use_prox else None)
+            it, reason = self._solve_ax(x, alpha)
         else:
-            it, reason = self._solve_y(x, l, lam if use_prox else None)
-        if self.first_iterations is None:
-            self.first_iterations = it
+            it, reason = self._solve_y(x, alpha)
         self.finish(it, reason)
         return x
 
-    def _solve_y(self, x, l, lam):
+    def _solve_y(self, x, alpha):
         """The paper's loop (one MatMult A y per iteration), fixed step, scalar or diagonal
-        metric, restart none or gradient."""
-        diagonal = self.metric == "diagonal"
-        use_prox = lam is not None
-        if diagonal:
-            D, alpha_v, alpha_tau = self.diagonal_metric()
-            if use_prox:
-                self.thr.pointwiseMult(alpha_tau, lam)
-        else:
-            alpha = 1.0 / self.lipschitz()
-            if use_prox:
-                self.thr.set(0.0)
-                self.thr.axpy(alpha, lam)
-        xnew, d, y, grad = self.xnew, self.d, self.y, self.grad
+        metric, restart none or gradient. (The hot loop: its calls are bound once.)"""
+        xnew, d, y, grad, thr = self.xnew, self.d, self.y, self.grad, self.thr
+        gradient = self.sub.gradient
+        prox = self.sub.prox if self.sub.has_prox else None
+        alpha_v = self.diagonal_metric()[1] if self.metric == "diagonal" else None
         d.set(0.0)                                         # x^(0) = x^(-1)
         _EV_ITER.begin()
         it, k, reason = 0, 0, None           # k: momentum counter (= it without restarts)
@@ -374,60 +217,39 @@ class APG(Loop):
             k += 1
             beta = (k - 2.0) / (k + 1.0)
             y.waxpy(beta, d, x)                            # y = x + beta (x - x_prev)
-            self.gradient(y, l, grad)
-            if diagonal:
+            gradient(y, grad)
+            if alpha_v is None:
+                xnew.waxpy(-alpha, grad, y)                # y - alpha grad
+            else:
                 xnew.pointwiseMult(alpha_v, grad)
                 xnew.aypx(-1.0, y)                         # y - D^-1 grad
-            else:
-                xnew.waxpy(-alpha, grad, y)
-            if use_prox:
-                self.cs.shrink_tangential(xnew, self.thr)
+            if prox is not None:
+                prox(xnew, thr)
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)
-            if restart:
-                grad.waxpy(-1.0, xnew, y)                  # y - x^i (grad is free now)
-                if diagonal:
-                    grad.pointwiseMult(grad, D)
-                if grad.dot(d) > 0.0:
-                    k = 1                                  # next step: beta = 0
-                    self.restarts += 1
+            if restart and self._gradient_restart(y, xnew, d):
+                k = 1                                      # next step: beta = 0
+                self.restarts += 1
             x.swap(xnew)                                   # x <- x^i
-            change, norm = d.norm(), x.norm()
-            reason = self.test(it, change, norm)
+            reason = self.test(it, d.norm(), x.norm())
             self._monitor(it, self.residual)
         _EV_ITER.end()
         self.matmults += it
         return it, reason
 
-    def _solve_ax(self, x, l, lam):
+    def _solve_ax(self, x, alpha):
         """MatMult on the new iterate (or each backtracking trial), A y by linearity:
         -apg_restart function and/or -apg_step backtracking."""
+        sub = self.sub
         if self._ax is None:
-            self._ax = [self.b.duplicate() for _ in range(5)]
-        Ax, Axp, Axn, Ay, dd = self._ax
-        cs, A = self.cs, self.A
-        use_prox = lam is not None
-        diagonal = self.metric == "diagonal"
+            self._ax = [sub.b.duplicate() for _ in range(6)]
+            self._S_y = sub.cs.vec()
+        Ax, Axp, Axn, Ay, dd, Ad = self._ax
+        A = sub.A
         backtrack = self.step == "backtracking"
-        L_glob = None if diagonal else self.lipschitz()
-        if diagonal:
-            D, alpha_v, alpha_tau = self.diagonal_metric()
-            if use_prox:
-                self.thr.pointwiseMult(alpha_tau, lam)
-        elif not backtrack:
-            alpha = 1.0 / L_glob
-            if use_prox:
-                self.thr.set(0.0)
-                self.thr.axpy(alpha, lam)
-        S_y, S_old, S_new, nrm_old, nrm_new = self._contact_work()[6:]
+        L_glob = None if self.metric == "diagonal" else sub.lipschitz()
         if backtrack and self.L_local is None:
             self.L_local = L_glob / self.backtrack_shrink
         fun = self.restart == "function"
-        grad_restart = self.restart == "gradient"
-        if fun and cs.size:
-            cs.gather(x, S_old, 2)
-            S_old.aypx(-self.r, l)                         # l - r x3
-            if use_prox:
-                cs.tangential_norm(x, self.t1, self.t2, nrm_old)
         xnew, d, y, grad = self.xnew, self.d, self.y, self.grad
         d.set(0.0)
         _EV_ITER.begin()
@@ -445,20 +267,16 @@ class APG(Loop):
                     L = min(L, L_glob)
                     tn = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * (L / self.L_local) * t * t))
                     beta = (t - 1.0) / tn
-                    self._y_and_gradient(x, d, Ax, Axp, Ay, beta, l, linear, S_y)
+                    self._y_and_gradient(x, d, Ax, Axp, Ay, beta, linear, self._S_y)
                     mm += 0 if linear else 1
-                    xnew.waxpy(-1.0 / L, grad, y)
-                    if use_prox:
-                        lam.copy(self.thr)
-                        self.thr.scale(1.0 / L)
-                        self.cs.shrink_tangential(xnew, self.thr)
+                    sub.prox_gradient_step(y, grad, 1.0 / L, xnew, self.thr)
                     A.mult(xnew, Axn)
                     mm += 1
                     if L >= L_glob:
                         break
                     dd.waxpy(-1.0, y, xnew)                # trial step x+ - y
                     grad.waxpy(-1.0, Ay, Axn)              # A (x+ - y)
-                    curv = grad.dot(dd) + 2.0 * self._penalty_bregman(S_y, dd)
+                    curv = grad.dot(dd) + 2.0 * sub.penalty_bregman(self._S_y, dd)
                     if curv <= L * dd.dot(dd):
                         break
                     self.backtracks += 1
@@ -466,39 +284,26 @@ class APG(Loop):
                 self.L_local, t = L, tn
             else:
                 beta = (k - 2.0) / (k + 1.0)
-                self._y_and_gradient(x, d, Ax, Axp, Ay, beta, l, linear, None)
+                self._y_and_gradient(x, d, Ax, Axp, Ay, beta, linear, None)
                 mm += 0 if linear else 1
-                if diagonal:
-                    xnew.pointwiseMult(alpha_v, grad)
-                    xnew.aypx(-1.0, y)
-                else:
-                    xnew.waxpy(-alpha, grad, y)
-                if use_prox:
-                    self.cs.shrink_tangential(xnew, self.thr)
+                self._step(y, alpha, xnew)
                 A.mult(xnew, Axn)
                 mm += 1
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)
             restarted = False
-            if grad_restart:
-                grad.waxpy(-1.0, xnew, y)                  # y - x^i
-                if diagonal:
-                    grad.pointwiseMult(grad, D)
-                restarted = grad.dot(d) > 0.0
-            elif fun:
-                dtheta = self._theta_change(xnew, d, Ax, Axn, l, lam, S_old, S_new,
-                                            nrm_old, nrm_new)
-                S_old.swap(S_new)
-                nrm_old.swap(nrm_new)
-                restarted = dtheta > 0.0
+            if self.restart == "gradient":
+                restarted = self._gradient_restart(y, xnew, d)
+            elif fun:                                      # Theta(x^i) > Theta(x^(i-1))
+                Ad.waxpy(-1.0, Ax, Axn)
+                restarted = sub.change(x, d, Ax, Ad).value(1.0) > 0.0
             if restarted:
                 k, t = 1, 1.0                              # next step: beta = 0
                 self.restarts += 1
             Axp, Ax, Axn = Ax, Axn, Axp                    # A x^(i-1), A x^i, free
             x.swap(xnew)
-            change, norm = d.norm(), x.norm()
-            reason = self.test(it, change, norm)
+            reason = self.test(it, d.norm(), x.norm())
             self._monitor(it, self.residual)
         _EV_ITER.end()
-        self._ax = [Ax, Axp, Axn, Ay, dd]
+        self._ax = [Ax, Axp, Axn, Ay, dd, Ad]
         self.matmults += mm
         return it, reason

@@ -15,8 +15,6 @@ Faithful mode (the paper): each Uzawa run starts from l = 0 and x = 0.
   row; stagnation = no step of the last 8 comes within 0.99 x of the smallest change
   before them.
 """
-import math
-
 from petsc4py import PETSc
 
 from .loop import InexactControl, Loop
@@ -31,38 +29,28 @@ class FixedPoint(Loop):
     """Options prefix ``-fp_``."""
 
     prefix = "fp_"
-    options = ("warm_start", "inexact", "relaxation", "detect_cycles")
     title = "FixedPoint"
     indent = 0
     hint = ("raise -fp_max_it; at large friction the map may not contract: "
             "try -fp_relaxation 0.5")
 
-    def __init__(self, uzawa, rtol=1e-6, max_it=100):
-        super().__init__(uzawa.comm, rtol, max_it)
-        self.uzawa = uzawa
-        cs = uzawa.inner.cs
+    def __init__(self, uzawa, cs):
+        super().__init__(uzawa.comm)
+        self.uzawa, self.cs = uzawa, cs
         self.g = cs.vec()          # g^t, the slip bound used in the last solve
         self.g_new = cs.vec()
         self.d_prev = cs.vec()     # g^t - g^{t-1}
-        self.warm_start = "none"
-        self.inexact = 0.0
-        self.relaxation = 1.0
-        self.detect_cycles = True
 
-    def set_from_options(self):
-        super().set_from_options()
-        o = PETSc.Options(self.prefix)
-        ws = o.getString("warm_start", self.warm_start).lower()
+    def check_options(self):
+        ws = str(self.warm_start).lower()
         ws = {"true": "xl", "1": "xl", "yes": "xl", "false": "none", "0": "none",
               "no": "none", "": "xl"}.get(ws, ws)
         if ws not in ("none", "x", "xl"):
             raise ValueError(f"-fp_warm_start must be none, x or xl, got {ws!r}")
         self.warm_start = ws
-        self.inexact = self.read_inexact(o)
-        self.relaxation = o.getReal("relaxation", self.relaxation)
+        self.check_inexact()
         if not (0.0 < self.relaxation <= 1.0):
             raise ValueError(f"-fp_relaxation must be in (0, 1], got {self.relaxation}")
-        self.detect_cycles = o.getBool("detect_cycles", self.detect_cycles)
 
     def _cycle_test(self, t, change, history):
         """DIVERGED_OSCILLATION / DIVERGED_STAGNATION or None (see the module docstring)."""
@@ -80,7 +68,7 @@ class FixedPoint(Loop):
         return None
 
     def _suggestion(self, reason):
-        fmax = self.uzawa.inner.cs.F.max()[1]
+        fmax = self.cs.F.max()[1]
         word = "oscillating" if reason == DIVERGED_OSCILLATION else "stagnating"
         w = 0.5 if self.relaxation >= 1.0 else self.relaxation / 2
         return f"fixed point {word} at F = {fmax:g}; try -fp_relaxation {w:g}"
@@ -88,6 +76,7 @@ class FixedPoint(Loop):
     def solve(self, x, l, g0=None):
         """Fixed point g = l(g) from g^0 = g0 (default 0); x, l are overwritten with u and
         the final multiplier (their values are a start only with -fp_warm_start)."""
+        self.begin()
         _EV.begin()
         if g0 is None:
             self.g.set(0.0)
@@ -101,8 +90,7 @@ class FixedPoint(Loop):
                 x.set(0.0)
             if self.warm_start != "xl":
                 l.set(0.0)
-            self.uzawa.loose_rtol = ctl.tolerance()
-            self.uzawa.solve(x, l, self.g)
+            self.uzawa.solve(x, l, self.g, rtol=ctl.tolerance())
             self.g_new.waxpy(-1.0, self.g, l)              # g^{t+1} - g^t
             change, norm = self.g_new.norm(), l.norm()
             reason = self.test(t, change, norm)
@@ -113,7 +101,6 @@ class FixedPoint(Loop):
             if reason is None:                             # g <- (1 - w) g + w l
                 self.g.axpby(w, 1.0 - w, l)
             self._monitor(t, self.residual, f"  (Uzawa its {self.uzawa.iterations})")
-        self.uzawa.loose_rtol = None
         _EV.end()
         cycling = reason in (DIVERGED_OSCILLATION, DIVERGED_STAGNATION)
         self.finish(t, reason, self._suggestion(reason) if cycling else None)

@@ -1,17 +1,20 @@
-"""Common machinery of the three iterative loops: options, monitors, reasons, errors.
+"""Common machinery of the iterative loops: options, monitors, reasons, errors.
 
-Each loop reads, under its own prefix P (``apg_``, ``uzawa_``, ``fp_``):
+Each loop reads, under its own prefix P (``apg_``, ``ssn_``, ``uzawa_``, ``fp_``):
   -P_rtol             relative tolerance on the change of its iterate
   -P_max_it           iteration limit
   -P_monitor          print the residual every iteration (-P_monitor_stride N: every N-th)
   -P_converged_reason print why and after how many iterations it stopped
   -P_error_if_not_converged  (default true) raise ConvergenceError at the limit;
                       false: warn, go on, and report converged: false
-Defaults are set in code (from the scene), then the options database overrides them.
+Defaults are the registry's (contact/options.py), then the scene's, then the options
+database's.
 """
 import math
 
 from petsc4py import PETSc
+
+from . import options
 
 
 class ConvergenceError(RuntimeError):
@@ -37,45 +40,49 @@ DIVERGED_NANORINF = "DIVERGED_NANORINF"
 
 
 class Loop:
-    """Base class: options under `prefix`, monitor, converged reason, iteration count."""
+    """Base class: options under `prefix`, monitor, converged reason, iteration count.
+
+    Its options and their defaults are the registry's (contact/options.py): every name
+    under `prefix` becomes an attribute; `set_from_options(scene)` reads them (the
+    registry's default, then the scene's solver value, then the options database) and
+    calls `check_options`. An outer loop hands a looser tolerance to one call
+    (`solve(..., rtol=...)`, inexact mode) instead of setting an attribute."""
 
     prefix = ""
     title = ""
     hint = ""
-    #: options every loop reads under its prefix; subclasses list theirs in `options`
-    common_options = ("rtol", "max_it", "monitor", "monitor_stride", "converged_reason",
-                      "error_if_not_converged")
-    options = ()
+    indent = 0
 
-    def __init__(self, comm, rtol, max_it):
+    def __init__(self, comm):
         self.comm = comm
-        self.rtol = float(rtol)
-        self.max_it = int(max_it)
-        self.monitor = False
-        self.monitor_stride = 1
-        self.converged_reason = False
-        self.error_if_not_converged = True
+        for name, default in options.LOOP_DEFAULTS[self.prefix].items():
+            setattr(self, name, default)
         self.iterations = 0          # of the last call
         self.total_iterations = 0    # over all calls
+        self.first_iterations = None  # of the very first call (Table 1's column)
         self.calls = 0
         self.reason = None
         self.residual = math.nan
         self.converged = True        # of every call so far
-        self.loose_rtol = None       # inexact mode: the outer loop's looser tolerance, if any
+        self._rtol = self.rtol       # the tolerance of the current call
 
-    def set_from_options(self):
-        o = PETSc.Options(self.prefix)
-        self.rtol = o.getReal("rtol", self.rtol)
-        self.max_it = o.getInt("max_it", self.max_it)
-        self.monitor = o.getBool("monitor", self.monitor)
-        self.monitor_stride = max(1, o.getInt("monitor_stride", self.monitor_stride))
-        self.converged_reason = o.getBool("converged_reason", self.converged_reason)
-        self.error_if_not_converged = o.getBool("error_if_not_converged",
-                                                self.error_if_not_converged)
+    @classmethod
+    def option_names(cls):
+        return tuple(options.LOOP_DEFAULTS[cls.prefix])
+
+    def set_from_options(self, scene=None):
+        for name in self.option_names():
+            setattr(self, name, options.get(self.prefix + name, scene))
+        self.monitor_stride = max(1, self.monitor_stride)
         if not (self.rtol > 0.0 and math.isfinite(self.rtol)):
             raise ValueError(f"-{self.prefix}rtol must be a positive number, got {self.rtol}")
         if self.max_it < 1:
             raise ValueError(f"-{self.prefix}max_it must be >= 1, got {self.max_it}")
+        self.check_options()
+        return self
+
+    def check_options(self):
+        """Range checks of the loop's own options (subclasses)."""
 
     def log(self, msg):
         PETSc.Sys.Print(msg, comm=self.comm)
@@ -84,7 +91,9 @@ class Loop:
         if self.monitor and (it % self.monitor_stride == 0 or it == 1):
             self.log(f"{' ' * self.indent}{it:6d} {self.title} rel. change {res:.6e}{extra}")
 
-    indent = 0
+    def begin(self, rtol=None):
+        """Start a call: its tolerance is -P_rtol, or the looser `rtol` an outer loop asks."""
+        self._rtol = self.rtol if rtol is None else max(self.rtol, rtol)
 
     def test(self, it, change, norm):
         """Convergence test on ||dz|| / ||z||; returns the reason or None."""
@@ -94,26 +103,22 @@ class Loop:
             self.residual = 0.0 if change == 0.0 else math.inf
             return CONVERGED_ZERO if change == 0.0 else None
         self.residual = change / norm
-        if self.residual < self.current_rtol():
+        if self.residual < self._rtol:
             return CONVERGED_RTOL
         if it >= self.max_it:
             return DIVERGED_MAX_IT
         return None
 
-    def read_inexact(self, options):
+    def check_inexact(self):
         """-P_inexact ETA in [0, 1): the tolerance factor of the next inner loop."""
-        eta = options.getReal("inexact", self.inexact)
-        if not 0.0 <= eta < 1.0:
-            raise ValueError(f"-{self.prefix}inexact must be in [0, 1), got {eta}")
-        return eta
-
-    def current_rtol(self):
-        """rtol, or the looser tolerance an outer loop set for this call (inexact mode)."""
-        return self.rtol if self.loose_rtol is None else max(self.rtol, self.loose_rtol)
+        if not 0.0 <= self.inexact < 1.0:
+            raise ValueError(f"-{self.prefix}inexact must be in [0, 1), got {self.inexact}")
 
     def finish(self, it, reason, hint=None):
         self.iterations = it
         self.total_iterations += it
+        if self.first_iterations is None:
+            self.first_iterations = it
         self.calls += 1
         self.reason = reason
         ok = reason in (CONVERGED_RTOL, CONVERGED_ZERO)

@@ -1,7 +1,7 @@
 """Semismooth Newton (SSN) for the Uzawa subproblem  min_x Theta(x) = G(x) + H(x).
 
-G, H as in contact/apg.py: G = 1/2 <Ax,x> - <b,x> + 1/(2r) sum_j w_j [((l_j + r x_j.nu)^+)^2
-- l_j^2], H = sum_j lambda_j |x_j,tau|. The minimiser solves the nonsmooth equation
+G, H, grad G, the prox and the changes of Theta are the subproblem's (contact/subproblem.py);
+this module holds the Newton iteration and its Jacobian. The minimiser solves the nonsmooth equation
     x = prox_{alpha H}(x - alpha grad G(x))        (alpha_j > 0 per contact node).
 Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives each step
     (A + P + T) dx = -(grad G(x) + s),  dx_tau,j = -x_tau,j on stick nodes (eliminated),
@@ -14,7 +14,7 @@ Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives eac
 The system is SPD: KSP with prefix -ssn_ (default CG + GAMG, block size 3, rigid-body
 near-nullspace; e.g. -ssn_ksp_type preonly -ssn_pc_type cholesky
 -ssn_pc_factor_mat_solver_type mumps for a direct solve). A backtracking line search on
-Theta (convex; its changes computed term by term, free of cancellation) globalises the
+Theta (convex; its changes from Subproblem.change, free of cancellation) globalises the
 step (-ssn_linesearch false: full steps). Where the
 semismooth direction does not descend Theta (its slip model is the prox equation's, not
 Theta's), the Newton step of Theta on the face where the stuck nodes stay stuck is tried
@@ -29,6 +29,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from . import options
 from .loop import DIVERGED_MAX_IT, Loop
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
@@ -39,24 +40,21 @@ DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 
 
 class SemismoothNewton(Loop):
-    """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``."""
+    """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``.
+    `solve(sub, x)` minimises the subproblem `sub` (contact/subproblem.py) from x;
+    `clamped` are the eliminated rows of A (diagonal `diag_scale`)."""
 
     prefix = "ssn_"
-    options = ("linesearch", "pc_reuse", "pc_lag")     # and the KSP's: -ssn_ksp_*, -ssn_pc_*
     title = "SSN"
     indent = 4
     hint = ("raise -ssn_max_it; with -solver_mode fast, try -fp_warm_start none, or the "
             "paper's -uzawa_inner apg")
     name = "ssn"
 
-    def __init__(self, A, b, cset, r, clamped, diag_scale, rtol=1e-10, max_it=100):
-        super().__init__(A.getComm(), rtol, max_it)
-        self.A, self.b, self.cs, self.r = A, b, cset, float(r)
+    def __init__(self, comm, clamped, diag_scale):
+        super().__init__(comm)
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
         self.diag_scale = float(diag_scale)
-        self.linesearch = True
-        self.pc_reuse = True
-        self.pc_lag = 1
         self._since_setup = 0
         self._sets = self._pc_sets = None
         self.pc_setups = 0
@@ -65,106 +63,90 @@ class SemismoothNewton(Loop):
         self.fallbacks = 0           # proximal-gradient steps taken
         self.theta_newton_steps = 0  # Newton steps of Theta tried (_theta_newton)
         self.accurate_resolves = 0   # Newton systems solved again more accurately
-        self.L_G = None
-        self.first_iterations = None
         self.ksp_iterations = 0
         self.line_search_cuts = 0
         self.n_stick = self.n_slip = 0
-        #: mu > 0: K + mu on the contact nodes' dofs (a Levenberg-Marquardt term; the
-        #: gradient and Theta are unchanged): keeps K nonsingular when nothing but the
-        #: contact holds the body and the active nodes alone do not (e.g. on one line)
-        self.contact_spring = 0.0
-        v = b.duplicate()                # the DM's Vec type, not the Mat's default
-        self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt, self.Adx = \
-            (v.duplicate() for _ in range(7))
-        v.destroy()
+        self.contact_spring = 0.0    # `regularize`
+        self.sub = None
         self.K = None
         self.ksp = PETSc.KSP().create(comm=self.comm)
         self.ksp.setOptionsPrefix(self.prefix)
         self.ksp.setType("cg")
         self.ksp.getPC().setType("gamg")
         self.ksp.setTolerances(rtol=1e-9, atol=1e-50, max_it=2000)
-        opts = PETSc.Options()
-        # the operator changes every step: GAMG must not reuse the first step's interpolation
-        # (with it, the smoothers of a penalised step went indefinite in our runs)
-        if not opts.hasName(self.prefix + "pc_gamg_reuse_interpolation"):
-            opts.setValue(self.prefix + "pc_gamg_reuse_interpolation", "false")
-        cs = cset
-        self.c0, self.c1, self.c2 = cs.vec(), cs.vec(), cs.vec()
-        d = A.getDiagonal()
-        cs.gather(d, self.c0, 0)
-        cs.gather(d, self.c1, 1)
-        self.alpha = 1.0 / np.maximum(cs.local_array(self.c0), cs.local_array(self.c1))
-        d.destroy()
-        self.w = cs.local_array(cs.w)
 
-    def set_from_options(self):
-        super().set_from_options()
-        o = PETSc.Options(self.prefix)
-        self.linesearch = o.getBool("linesearch", self.linesearch)
-        self.pc_reuse = o.getBool("pc_reuse", self.pc_reuse)
-        self.pc_lag = o.getInt("pc_lag", self.pc_lag)
+    def check_options(self):
         if self.pc_lag < 1:
             raise ValueError(f"-ssn_pc_lag must be >= 1, got {self.pc_lag}")
-        self.ksp.setFromOptions()
+        # the operator changes every step: GAMG must not reuse the first step's interpolation
+        # (with it, the smoothers of a penalised step went indefinite in our runs); the
+        # option is there while the KSP reads it (the user's value wins), then removed
+        with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "false"}):
+            self.ksp.setFromOptions()
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a stale factorisation would be a wrong Jacobian
 
+    def regularize(self, mu):
+        """K + mu on the contact nodes' dofs (a Levenberg-Marquardt term; the gradient and
+        Theta are unchanged) from the next step on; 0 removes it. Keeps K nonsingular when
+        nothing but the contact holds the body and the active nodes alone do not (e.g. on
+        one line). The next step builds a new K and preconditioner."""
+        self.contact_spring = float(mu)
+        if self.K is not None:
+            self.K.destroy()
+            self.K = None
+        self._pc_sets = None
+
+    def _bind(self, sub):
+        """Work vectors, the Jacobian's tangential scaling and the free-row mask for `sub`
+        (once: A and the contact set do not change between calls)."""
+        if self.sub is None:
+            v, cs = sub.b, sub.cs
+            self.Ax, self.grad, self.rhs, self.dx, self.xt, self.Axt, self.Adx, self.free = \
+                (v.duplicate() for _ in range(8))
+            self.c0, self.c1, self.c2, self.S, self.thr = (cs.vec() for _ in range(5))
+            d = sub.A.getDiagonal()
+            cs.gather(d, self.c0, 0)
+            cs.gather(d, self.c1, 1)
+            self.alpha = 1.0 / np.maximum(cs.local_array(self.c0), cs.local_array(self.c1))
+            d.destroy()
+            self.w = cs.local_array(cs.w)
+            self.free.set(1.0)                 # 0 on the eliminated (clamped) rows
+            self.free.setValues(self.clamped, np.zeros(len(self.clamped)))
+            self.free.assemble()
+        self.sub = sub
+
     # -- pieces --------------------------------------------------------------------------
-    def _contact(self, x, l):
-        """Owned contact arrays: x1, x2, x3 and the penalty argument l + r u_nu."""
-        cs = self.cs
-        out = []
-        for c, v in enumerate((self.c0, self.c1, self.c2)):
-            cs.gather(x, v, c)
-            out.append(v.getArray(readonly=True).copy())
-        la = l.getArray(readonly=True)
-        return out[0], out[1], out[2], la - self.r * out[2]
-
-    def _gradient(self, x, Ax, l):
-        """grad G(x) = A x - b - w (l - r x3)^+ on the x3 dofs (Ax given)."""
-        g = self.grad
-        g.waxpy(-1.0, self.b, Ax)
-        _, _, _, p = self._contact(x, l)
-        self.c2.setArray(-self.w * np.maximum(p, 0.0))
-        self.cs.scatter(self.c2, g, 2, mode=PETSc.InsertMode.ADD_VALUES)
-        return g, p
-
     def _system(self, x, grad, p, lam, theta_model=False):
-        """K = A + P + T and rhs = -(grad + s), with stick tangential dofs eliminated.
+        """K = A + P + T and rhs = -(grad + s), with stick tangential dofs eliminated
+        (p: the owned penalty arguments l - r x3; lam: owned lambda or None).
 
         theta_model: the Newton system of Theta itself on the face where the nodes with
         x_tau = 0 stay stuck (z = x_tau, tau = 0: n = x_tau/|x_tau|, c = lambda/|x_tau|,
         s = lambda n, the gradient and Hessian of lambda |x_tau|): SPD with rhs = -grad
         Theta on that face, so its direction descends Theta."""
         _EV_MAT.begin()
-        cs = self.cs
+        sub = self.sub
+        cs, A = sub.cs, sub.A
         if self.K is None:
-            self.K = self.A.duplicate(copy=True)
-            self.K.setNearNullSpace(self.A.getNearNullSpace())
+            self.K = A.duplicate(copy=True)
+            self.K.setNearNullSpace(A.getNearNullSpace())
             self.K.setOption(PETSc.Mat.Option.SPD, True)
         else:
-            self.A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         K, rhs = self.K, self.rhs
         grad.copy(rhs)
         rhs.scale(-1.0)
         add = PETSc.InsertMode.ADD_VALUES
         active = p >= 0.0          # closed set: from x = l = 0 every node starts active
-        self.c2.setArray(np.where(active, self.r * self.w, 0.0))
-        diag = self.b.duplicate()
+        self.c2.setArray(np.where(active, sub.r * self.w, 0.0))
+        diag = sub.b.duplicate()
         diag.set(0.0)
         cs.scatter(self.c2, diag, 2, mode=add)
-        stick_rows = np.empty(0, dtype=PETSc.IntType)
-        dvals = None
+        self._stick = None
         if lam is not None:
-            cs.gather(x, self.c0, 0)
-            cs.gather(x, self.c1, 1)
-            x1 = self.c0.getArray(readonly=True).copy()
-            x2 = self.c1.getArray(readonly=True).copy()
-            cs.gather(grad, self.c0, 0)
-            cs.gather(grad, self.c1, 1)
-            g1 = self.c0.getArray(readonly=True)
-            g2 = self.c1.getArray(readonly=True)
+            x1, x2, _ = sub.contact_arrays(x, self.c0)
+            g1, g2, _ = sub.contact_arrays(grad, self.c0)
             if theta_model:
                 z1, z2, tau = x1, x2, np.zeros_like(lam)
             else:
@@ -199,8 +181,8 @@ class SemismoothNewton(Loop):
                 V = np.concatenate([off, off]).reshape(-1, 1, 1)
                 K.setValuesRCV(R, C, V, add)
             k = np.flatnonzero(stick)
-            stick_rows = np.concatenate([cs.dofs[0][k], cs.dofs[1][k]]).astype(PETSc.IntType)
-            dvals = np.concatenate([-x1[k], -x2[k]])
+            rows = np.concatenate([cs.dofs[0][k], cs.dofs[1][k]]).astype(PETSc.IntType)
+            self._stick = (rows, np.concatenate([-x1[k], -x2[k]]))
             self.n_stick, self.n_slip = int(stick.sum()), int(slip.sum())
             self._sets = (active, stick, slip)
         else:
@@ -214,28 +196,42 @@ class SemismoothNewton(Loop):
         diag.destroy()
         # stick nodes: dx_tau = -x_tau, eliminated symmetrically (rows and columns)
         self.dx.set(0.0)
-        if dvals is not None and stick_rows.size:
-            self.dx.setValues(stick_rows, dvals)
+        if self._stick is not None and self._stick[0].size:
+            self.dx.setValues(*self._stick)
         self.dx.assemble()
-        rows = self.comm.tompi4py().allreduce(stick_rows.size)
-        if rows:
-            K.zeroRowsColumns(stick_rows, self.diag_scale, self.dx, rhs)
+        n_stick = self.comm.tompi4py().allreduce(self._stick[0].size if self._stick else 0)
+        if n_stick:
+            K.zeroRowsColumns(self._stick[0], self.diag_scale, self.dx, rhs)
+        else:
+            self._stick = None
         _EV_MAT.end()
         return K, rhs
 
+    def _linear_solve(self, rhs):
+        """dx <- K^-1 rhs; the eliminated rows get their exact values (0 on clamped rows,
+        -x_tau on stick rows), which an iterative solve meets only to its tolerance."""
+        self.ksp.solve(rhs, self.dx)
+        self.ksp_iterations += self.ksp.getIterationNumber()
+        self.dx.pointwiseMult(self.dx, self.free)
+        if self._stick is not None:
+            self.dx.setValues(*self._stick)
+            self.dx.assemble()
+
     # -- solve ---------------------------------------------------------------------------
-    def solve(self, x, l, lam):
-        """Minimise Theta from the start x (overwritten); l multiplier, lam = F g w or None."""
-        lam_a = None
-        if lam is not None and self.cs.size and lam.norm(PETSc.NormType.INFINITY) > 0:
-            lam_a = lam.getArray(readonly=True).copy()
+    def solve(self, sub, x, rtol=None):
+        """Minimise Theta of `sub` from the start x (overwritten); rtol: a looser tolerance
+        for this call (an outer loop's inexact mode), else -ssn_rtol."""
+        self._bind(sub)
+        self.begin(rtol)
+        lam = sub.cs.local_array(sub.lam) if sub.has_prox else None
         _EV_ITER.begin()
-        self.A.mult(x, self.Ax)
+        sub.A.mult(x, self.Ax)
         it, reason = 0, None
         while reason is None:
             it += 1
-            grad, p = self._gradient(x, self.Ax, l)
-            K, rhs = self._system(x, grad, p, lam_a)
+            grad = sub.gradient(x, self.grad, self.Ax, self.S)
+            p = self.S.getArray(readonly=True).copy()
+            K, rhs = self._system(x, grad, p, lam)
             _EV_KSP.begin()
             self.ksp.setOperators(K)
             same = self._same_sets()
@@ -245,34 +241,31 @@ class SemismoothNewton(Loop):
                 self._pc_sets = self._sets
                 self.pc_setups += 1
                 self._since_setup = 0
-            self.ksp.solve(rhs, self.dx)
+            self._linear_solve(rhs)
             if self.ksp.getConvergedReason() < 0 and same:
                 # the kept preconditioner (-ssn_pc_lag, -ssn_pc_reuse) was built for other
                 # sets, whose penalties differ by r w: set it up afresh and solve again
-                self.ksp_iterations += self.ksp.getIterationNumber()
                 self.ksp.getPC().setReusePreconditioner(False)
                 self._pc_sets, self._since_setup = self._sets, 0
                 self.pc_setups += 1
-                self.ksp.solve(rhs, self.dx)
+                self._linear_solve(rhs)
             _EV_KSP.end()
-            self.ksp_iterations += self.ksp.getIterationNumber()
             if self.ksp.getConvergedReason() < 0:
                 self.residual = float("nan")
                 reason = DIVERGED_LINEAR_SOLVE
                 break
-            t, dtheta, full = self._line_search(x, l, lam_a)
-            rtol = self.ksp.getTolerances()[0]
-            if self.linesearch and not full and rtol > 1e-10 and self._rejected(t, dtheta):
+            t, dtheta, full = self._line_search(x)
+            rtol_k = self.ksp.getTolerances()[0]
+            if self.linesearch and not full and rtol_k > 1e-10 and self._rejected(t, dtheta):
                 # an inexact Krylov solve may give no descent direction: solve it again
                 # a thousand times more accurately before giving up on Newton
-                self.ksp.setTolerances(rtol=max(1e-3 * rtol, 1e-12))
-                self.ksp.solve(rhs, self.dx)
-                self.ksp_iterations += self.ksp.getIterationNumber()
-                self.ksp.setTolerances(rtol=rtol)
+                self.ksp.setTolerances(rtol=max(1e-3 * rtol_k, 1e-12))
+                self._linear_solve(rhs)
+                self.ksp.setTolerances(rtol=rtol_k)
                 self.accurate_resolves += 1
-                t, dtheta, full = self._line_search(x, l, lam_a)
+                t, dtheta, full = self._line_search(x)
             if self.linesearch and not full and self._rejected(t, dtheta) and \
-                    lam_a is not None and self._theta_newton(x, grad, p, l, lam_a):
+                    lam is not None and self._theta_newton(x, grad, p, lam):
                 # the semismooth direction need not descend Theta (its slip model is that
                 # of the prox equation): the Newton step of Theta on the face where the
                 # stuck nodes stay stuck does; as for the proximal-gradient step below,
@@ -288,7 +281,9 @@ class SemismoothNewton(Loop):
                 # dx is no (good) descent direction of Theta: take the proximal-gradient
                 # step 1/L instead, which decreases Theta; its length says nothing
                 # about convergence, so the test waits for the next Newton step
-                self._prox_gradient_step(x, grad, l, lam_a)
+                sub.prox_gradient_step(x, grad, 1.0 / sub.lipschitz_bound(), self.xt,
+                                       self.thr)
+                sub.A.mult(self.xt, self.Axt)
                 self.fallbacks += 1
                 x.swap(self.xt)
                 self.Ax.swap(self.Axt)
@@ -304,12 +299,10 @@ class SemismoothNewton(Loop):
             self._monitor(it, self.residual, f"  (KSP its {self.ksp.getIterationNumber()}, "
                                              f"step {t:g})")
         _EV_ITER.end()
-        if self.first_iterations is None:
-            self.first_iterations = it
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x
 
-    def _theta_newton(self, x, grad, p, l, lam):
+    def _theta_newton(self, x, grad, p, lam):
         """Try the Newton step of Theta with the nodes x_tau = 0 held stuck (_system's
         theta_model); True when its line search decreases Theta (xt, Axt set).
         The preconditioner is set up for it and again at the next semismooth step."""
@@ -318,91 +311,49 @@ class SemismoothNewton(Loop):
         self.ksp.getPC().setReusePreconditioner(False)
         self._pc_sets, self._since_setup = None, 0
         self.pc_setups += 1
-        self.ksp.solve(rhs, self.dx)
-        self.ksp_iterations += self.ksp.getIterationNumber()
+        self._linear_solve(rhs)
         self.theta_newton_steps += 1
         if self.ksp.getConvergedReason() < 0:
             return False
-        t, dtheta, full = self._line_search(x, l, lam)
+        t, dtheta, full = self._line_search(x)
         return full or not self._rejected(t, dtheta)
 
-    def _decrease(self, t, dtheta):
-        """Theta(x + t dx) < Theta(x), from the accurate change dtheta (`_change`); the
-        full step (t = 1) is taken also when the change is within its rounding (near the
-        solution a Newton step changes Theta by less than that, and rejecting it led to
+    def _decrease(self, t, dtheta, scale):
+        """Theta(x + t dx) < Theta(x), from the accurate change dtheta (Subproblem.change);
+        the full step (t = 1) is taken also when the change is within its rounding (near
+        the solution a Newton step changes Theta by less than that, and rejecting it led to
         null proximal-gradient steps until DIVERGED_MAX_IT). A cut step must decrease
         Theta by more than the rounding: one that does not is too short to make progress
         (the accurate re-solve, the Newton step of Theta or the proximal-gradient step
         follow)."""
-        tol = 1e-13 * self._scale
+        tol = 1e-13 * scale
         return dtheta <= tol if t == 1.0 else dtheta < -tol
 
     def _rejected(self, t, dtheta):
         """Whether the line search's step is no good: too short, or no decrease."""
-        return t < self.min_step or not self._decrease(t, dtheta)
+        return t < self.min_step or not self._decrease(t, dtheta, self._scale)
 
-    def _direction(self, x, l, lam):
-        """What `_change` needs of dx at x: <dx, Ax - b>, <dx, A dx> (A dx in Adx), the
-        contact arrays of x and dx, and S = l - r x3."""
-        self.A.mult(self.dx, self.Adx)
-        g0 = self.dx.dot(self.Ax) - self.dx.dot(self.b)
-        q = self.dx.dot(self.Adx)
-        x1, x2, _, S = self._contact(x, l)
-        d1, d2, d3, _ = self._contact(self.dx, l)
-        self._dir = (g0, q, x1, x2, S, d1, d2, d3, lam)
-
-    def _change(self, t):
-        """Theta(x + t dx) - Theta(x) term by term, free of the cancellation of two Theta
-        values: t <dx, Ax - b> + t^2/2 <dx, A dx>; the penalty's w/(2r) E (E + 2 S^+),
-        E = (S + D)^+ - S^+ = max(D + min(S, 0), -S^+), D = -r t dx3; friction's
-        lambda <e, 2 x_tau + e> / (|x_tau + e| + |x_tau|), e = t dx_tau. Sets _scale (the
-        sum of the terms' magnitudes: the change's rounding is about 1e-16 of it)."""
-        g0, q, x1, x2, S, d1, d2, d3, lam = self._dir
-        P = np.maximum(S, 0.0)
-        E = np.maximum(-self.r * t * d3 + np.minimum(S, 0.0), -P)
-        pen = self.w * E * (E + 2.0 * P) / (2.0 * self.r)
-        loc = np.array([pen.sum(), np.abs(pen).sum()])
-        if lam is not None:
-            e1, e2 = t * d1, t * d2
-            num = e1 * (2.0 * x1 + e1) + e2 * (2.0 * x2 + e2)
-            den = np.hypot(x1 + e1, x2 + e2) + np.hypot(x1, x2)
-            fr = lam * num / np.where(den > 0.0, den, 1.0)
-            loc += [fr.sum(), np.abs(fr).sum()]
-        loc = self.comm.tompi4py().allreduce(loc)
-        el, el2 = t * g0, 0.5 * t * t * q
-        self._scale = abs(el) + abs(el2) + loc[1]
-        return el + el2 + loc[0]
-
-    def _line_search(self, x, l, lam):
+    def _line_search(self, x):
         """Halve t from 1 until Theta(x + t dx) < Theta(x) (`_decrease`) or t < min_step;
         xt, Axt hold the last trial. Returns (t, Theta(xt) - Theta(x), full): full = the
         step is below the rounding of Theta (relative length < full_step_below) and is
         taken as it is."""
+        sub = self.sub
         full = self.dx.norm() <= self.full_step_below * max(x.norm(), 1e-300)
-        self._direction(x, l, lam)
+        sub.A.mult(self.dx, self.Adx)
+        change = sub.change(x, self.dx, self.Ax, self.Adx)
         t = 1.0
         while True:
-            dtheta = self._change(t)
-            if not self.linesearch or full or self._decrease(t, dtheta) \
+            dtheta = change.value(t)
+            self._scale = change.scale
+            if not self.linesearch or full or self._decrease(t, dtheta, self._scale) \
                     or t < self.min_step:
                 break
             t *= 0.5
             self.line_search_cuts += 1
         self.xt.waxpy(t, self.dx, x)
-        self.A.mult(self.xt, self.Axt)
+        sub.A.mult(self.xt, self.Axt)
         return t, dtheta, full
-
-    def _prox_gradient_step(self, x, grad, l, lam):
-        """xt <- prox_{lam |.|/L}(x - grad / L), L = ||A||_inf + r max w >= the Lipschitz
-        constant of grad G: Theta(xt) <= Theta(x) (Axt set)."""
-        if self.L_G is None:
-            wmax = self.comm.tompi4py().allreduce(float(self.w.max(initial=0.0)), op=MPI.MAX)
-            self.L_G = self.A.norm(PETSc.NormType.INFINITY) + self.r * wmax
-        self.xt.waxpy(-1.0 / self.L_G, grad, x)
-        if lam is not None:
-            self.c2.setArray(lam / self.L_G)
-            self.cs.shrink_tangential(self.xt, self.c2)
-        self.A.mult(self.xt, self.Axt)
 
     def _ksp_hint(self):
         """Why the linear solve failed, in PETSc's words, and what to try."""

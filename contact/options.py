@@ -1,4 +1,10 @@
-"""The options this program reads, and the check that rejects unknown or misspelled ones.
+"""The options this program reads, declared once, and the check that rejects unknown ones.
+
+`REGISTRY` is the one list: each option's name, default, type and help. From it come
+`-help` (`usage`), the names the checker knows (`known`), the loops' defaults
+(`Loop.set_from_options`: the registry's default, then the scene's `solver:` value, then
+the options database) and the README's option table (`markdown_table`, held equal to the
+README by tests/test_options.py).
 
 PETSc silently ignores an option nobody asks for, so ``-apg_rtoll 1e-3`` would run with
 the default tolerance. Before a run, every option in the database is checked:
@@ -7,59 +13,209 @@ the default tolerance. Before a run, every option in the database is checked:
   * any other name close to one of ours (a likely typo: -frction) is rejected too;
   * the rest are PETSc's own (-log_view, -ssn_ksp_type, -elastic_pc_type, ...) and are
     left to PETSc.
+Presets (`-solver_mode fast`) are inserted for one solve only (`inserted`), as DOLFINx and
+firedrake do: options the user gave win, and nothing is left behind.
 """
+import contextlib
 import ctypes
 import difflib
+from typing import NamedTuple
 
 import numpy as np
 from petsc4py import PETSc
 
-from . import scene as scenes
-from .apg import APG
-from .fixedpoint import FixedPoint
-from .newton import SemismoothNewton
-from .uzawa import Uzawa
 
-#: options of the entry point and of the problem set-up
-GENERAL = ("scene", "output_dir", "debug", "help", "solver_mode", "c2f_levels",
-           "dm_vec_type", "dm_mat_type", "vec_type", "mat_type", "petscpartitioner_type",
-           "check_tol", "output_formats", "gmsh_verbose")
+class Option(NamedTuple):
+    name: str                 # without the dash
+    default: object           # None: no default (set by the scene or not at all)
+    kind: type                # float, int, bool, str
+    help: str
+    value: str = ""           # the value's name in -help (e.g. TOL); "" for a flag
+    scene: tuple = ()         # the scene path that gives a default, if any
+
+
+#: the prefixes of our loops, their titles and their own defaults of the common options
+LOOP_PREFIXES = {"fp_": ("FixedPoint", 1e-6, 100), "uzawa_": ("Uzawa", 1e-6, 1000),
+                 "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100)}
+#: options every loop reads under its prefix P
+COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate"),
+          ("max_it", int, "N", "iteration limit"),
+          ("monitor", bool, "", "print the relative change every iteration"),
+          ("monitor_stride", int, "N", "with -P_monitor: every N-th iteration"),
+          ("converged_reason", bool, "", "print why and after how many iterations it stopped"),
+          ("error_if_not_converged", bool, "BOOL",
+           "at the limit: raise (default true), or warn, go on and report converged: false"))
+
+
+def _common():
+    out = []
+    for p, (title, rtol, max_it) in LOOP_PREFIXES.items():
+        defaults = {"rtol": rtol, "max_it": max_it, "monitor": False, "monitor_stride": 1,
+                    "converged_reason": False, "error_if_not_converged": True}
+        for name, kind, value, text in COMMON:
+            scene = ("solver", p + name) if name in ("rtol", "max_it") else ()
+            out.append(Option(p + name, defaults[name], kind, f"{title}: {text}", value, scene))
+    return out
+
+
+REGISTRY = [
+    # -- scene and problem -------------------------------------------------------------------
+    Option("scene", None, str, "scene YAML (default runs/paper_beam.yaml)", "FILE"),
+    Option("nd", None, int, "mesh: cells_per_nd * N hexahedra (paper: 3N x N x N)", "N",
+           ("mesh", "nd")),
+    Option("friction", None, str, "Coulomb coefficient: a number or a NumPy expression in "
+           "x, y, z, e.g. \"where(x<1.5,0.3,0)\"", "F", ("contact", "friction")),
+    Option("young", None, float, "Young's modulus E", "E", ("material", "young")),
+    Option("poisson", None, float, "Poisson ratio nu", "NU", ("material", "poisson")),
+    Option("load_steps", 1, int, "quasi-static load increments (1: the static problem)", "N",
+           ("loading", "steps")),
+    Option("output_dir", None, str, "results directory (default runs/out/<scene>-nd<N>/)",
+           "DIR"),
+    Option("output_formats", "h5,xdmf,json", str, "files to write: h5, xdmf, json, or none",
+           "LIST"),
+    Option("check_tol", 1e-3, float, "after the loops every residual must be <= T (0: no "
+           "check), else the run fails: a vanishing step (huge r) also stops the loops", "T",
+           ("solver", "check_tol")),
+    Option("statics_check", True, bool, "refuse a friction-held body whose tangential load "
+           "exceeds F N (statics of a rigid block)", "BOOL"),
+    Option("solver_mode", "faithful", str, "faithful: the paper's loops; fast: the preset "
+           "SSN inner solver, warm starts, inexact loops (options given still win)",
+           "faithful|fast", ("solver", "mode")),
+    Option("c2f_levels", 0, int, "coarse-to-fine: solve at Nd/2 (from Nd/4, ...) first and "
+           "start from the interpolated x, l, g (box meshes)", "N", ("solver", "c2f_levels")),
+    Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
+    Option("debug", False, bool, "show the traceback of an error", ""),
+    Option("help", None, bool, "this list", ""),
+    Option("dm_vec_type", None, str, "Vec type of the loops (e.g. cuda; also -vec_type)",
+           "TYPE"),
+    Option("dm_mat_type", None, str, "Mat type (e.g. aijcusparse; also -mat_type)", "TYPE"),
+    Option("vec_type", None, str, "as -dm_vec_type", "TYPE"),
+    Option("mat_type", None, str, "as -dm_mat_type", "TYPE"),
+    Option("petscpartitioner_type", None, str, "mesh partitioner (default ParMETIS if PETSc "
+           "has it, else METIS via pymetis)", "TYPE"),
+    # -- the loops ---------------------------------------------------------------------------
+    *_common(),
+    Option("fp_warm_start", "none", str, "start each Uzawa run from the previous x (and l); "
+           "the paper restarts at 0", "none|x|xl"),
+    Option("fp_inexact", 0.0, float, "Uzawa tolerance min(ETA * fixed-point change, cap), "
+           "the cap shrinking when the fixed point stalls (0: off)", "ETA"),
+    Option("fp_relaxation", 1.0, float, "g <- (1-W) g + W l, W in (0, 1] (1: the paper's); "
+           "helps at large F", "W"),
+    Option("fp_detect_cycles", True, bool, "stop early on an oscillating or stagnating fixed "
+           "point (DIVERGED_OSCILLATION / _STAGNATION), suggesting a relaxation", "BOOL"),
+    Option("uzawa_r", 1e8, float, "parameter r of the modified Lagrangian (paper: 1e8)", "R",
+           ("solver", "uzawa_r")),
+    Option("uzawa_inner", "apg", str, "inner solver: FISTA (the paper's) or semismooth "
+           "Newton (its KSP: prefix -ssn_, CG + GAMG)", "apg|ssn", ("solver", "uzawa_inner")),
+    Option("uzawa_warm_start", True, bool, "start each inner solve from the last u (false: "
+           "from 0)", "BOOL"),
+    Option("uzawa_inexact", 0.0, float, "inner tolerance min(ETA * Uzawa change, cap) (0: "
+           "off)", "ETA"),
+    Option("apg_metric", "scalar", str, "one step 1/L (paper) or a Jacobi-type diagonal "
+           "metric", "scalar|diagonal"),
+    Option("apg_restart", "none", str, "adaptive momentum restart (O'Donoghue & Candes); "
+           "none: the paper's iteration", "none|gradient|function"),
+    Option("apg_step", "fixed", str, "step 1/L, or Beck-Teboulle backtracking",
+           "fixed|backtracking"),
+    Option("apg_lipschitz_its", 100, int, "power iterations for L_A >= lambda_max(A)", "N"),
+    Option("apg_lipschitz_margin", 1.1, float, "L_A = min(M x power-iteration estimate, "
+           "||A||_inf)", "M"),
+    Option("apg_backtrack_shrink", 4.0, float, "backtracking: first trial L / S", "S"),
+    Option("apg_backtrack_factor", 2.0, float, "backtracking: trial L times K until accepted",
+           "K"),
+    Option("apg_backtrack_decrease", 0.95, float, "backtracking: each iteration first tries "
+           "D x the last L", "D"),
+    Option("ssn_linesearch", True, bool, "backtracking line search on Theta (false: full "
+           "Newton steps)", "BOOL"),
+    Option("ssn_pc_reuse", True, bool, "keep the preconditioner while the active, stick and "
+           "slip sets do not change", "BOOL"),
+    Option("ssn_pc_lag", 1, int, "keep the preconditioner for N steps after each set-up",
+           "N"),
+]
+BY_NAME = {o.name: o for o in REGISTRY}
+#: the scene options with a name of their own (-nd, -friction, ...) and their scene paths
+NAMED = {o.name: o.scene for o in REGISTRY
+         if o.scene and o.scene[0] != "solver" or o.name in
+         ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol")}
+#: defaults a scene's solver: section takes when it does not give them
+SCENE_SOLVER_DEFAULTS = {o.scene[1]: o.default for o in REGISTRY
+                         if o.scene[:1] == ("solver",) and o.default is not None}
+#: the loops' defaults (one place): {prefix: {name without prefix: default}}
+LOOP_DEFAULTS = {p: {o.name[len(p):]: o.default for o in REGISTRY if o.name.startswith(p)}
+                 for p in LOOP_PREFIXES}
+
 #: PETSc's own options that look like ours to a spelling check
 PETSC_GLOBAL = ("log_view", "options_left", "malloc_debug", "malloc_dump", "info",
                 "use_gpu_aware_mpi", "device_enable", "log_trace")
-#: options the solver sets itself where the user did not (newton.py: GAMG must rebuild
-#: its interpolation), unused with a direct solver
-SET_BY_US = ("ssn_pc_gamg_reuse_interpolation",)
 #: read by PETSc only when it finalizes (so still unused at the end of a run)
 PETSC_AT_EXIT = ("log_view", "options_left", "malloc_dump", "malloc_debug", "log_trace",
                  "memory_view", "objects_dump", "check_pointer_intensity")
-#: prefixes of our loops (every name under them must be known)
-LOOPS = (APG, SemismoothNewton, Uzawa, FixedPoint)
 #: PETSc objects configured under the -ssn_ prefix (their options are PETSc's to check)
 PETSC_UNDER_SSN = ("ksp_", "pc_", "mg_", "sub_", "mat_", "gamg_")
 OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "c2f_", "solver_", "scene_")
-
-
-class OptionsError(ValueError):
-    """An option that nothing reads."""
-
-
-def known(scene=None):
-    """Every option name we read (scene_* paths of `scene` included)."""
-    names = set(GENERAL) | set(scenes.NAMED)
-    for loop in LOOPS:
-        names |= {loop.prefix + o for o in loop.common_options + loop.options}
-    if scene is not None:
-        names |= {"scene_" + "_".join(p) for p, _ in scenes.scalars(scene)}
-    return names
-
-
 #: prefixes of PETSc's own objects and options: never checked against our names
 PETSC_PREFIXES = ("ksp_", "pc_", "mg_", "mat_", "vec_", "dm_", "sub_", "snes_", "ts_",
                   "tao_", "log_", "malloc", "options_", "info", "viewer_", "draw_",
                   "device_", "cuda_", "kokkos_", "use_gpu", "elastic_", "petscpartitioner_",
                   "petscsection_", "is_", "sf_", "history", "on_error", "fp_trap",
                   "no_signal_handler")
+
+
+class OptionsError(ValueError):
+    """An option that nothing reads."""
+
+
+def _scene_value(scene, path):
+    d = scene
+    for k in path:
+        if not isinstance(d, dict) or k not in d:
+            return None
+        d = d[k]
+    return d
+
+
+def get(name, scene=None, opts=None):
+    """The value of -name: the registry's default, then the scene's value (at the option's
+    scene path), then the options database."""
+    o = BY_NAME[name]
+    value = o.default
+    if scene is not None and o.scene:
+        v = _scene_value(scene, o.scene)
+        if v is not None:
+            value = o.kind(v) if o.kind is not str else str(v)
+    opts = opts or PETSc.Options()
+    if not opts.hasName(name):
+        return value
+    if o.kind is bool:
+        return opts.getBool(name, bool(value) if value is not None else True)
+    if o.kind is int:
+        return opts.getInt(name, value if value is not None else 0)
+    if o.kind is float:
+        return opts.getReal(name, value if value is not None else 0.0)
+    return opts.getString(name, value if value is not None else "")
+
+
+@contextlib.contextmanager
+def inserted(values):
+    """Insert the options `values` ({name: text}) not given by the user, for the block only."""
+    opts = PETSc.Options()
+    added = [k for k in values if not opts.hasName(k)]
+    for k in added:
+        opts.setValue(k, values[k])
+    try:
+        yield added
+    finally:
+        for k in added:
+            opts.delValue(k)
+
+
+def known(scene=None):
+    """Every option name we read (scene_* paths of `scene` included)."""
+    from .scene import scalars
+    names = set(BY_NAME)
+    if scene is not None:
+        names |= {"scene_" + "_".join(p) for p, _ in scalars(scene)}
+    return names
 
 
 def _petsc(name):
@@ -72,7 +228,7 @@ def _ours(name):
         return False
     if name.startswith("ssn_"):
         rest = name[len("ssn_"):]
-        return not rest.startswith(PETSC_UNDER_SSN) or rest in SemismoothNewton.options
+        return not rest.startswith(PETSC_UNDER_SSN) or name in BY_NAME
     return True
 
 
@@ -109,7 +265,64 @@ def unused():
 def warn_unused(comm):
     """One warning line for options nobody read during the run (PETSc's -options_left
     in short): a misspelled PETSc option such as -ssn_ksp_typ is caught here."""
-    left = [n for n in (unused() or []) if n not in PETSC_AT_EXIT and n not in SET_BY_US]
+    left = [n for n in (unused() or []) if n not in PETSC_AT_EXIT]
     if left:
         PETSc.Sys.Print("WARNING: options not used in this run: " +
                         " ".join("-" + n for n in sorted(left)), comm=comm)
+
+
+# -- documentation: -help and the README's table ---------------------------------------------
+def _default_text(o):
+    if o.default is None or o.default == "":
+        return ""
+    if o.kind is bool:
+        return "true" if o.default else "false"
+    return f"{o.default:g}" if isinstance(o.default, float) else str(o.default)
+
+
+def _rows():
+    """(option text, meaning, default) rows; the common loop options share one row each."""
+    rows, seen = [], set()
+    for o in REGISTRY:
+        common = next((n for n, *_ in COMMON if o.name.endswith("_" + n) and
+                       o.name[:-len(n)] in LOOP_PREFIXES), None)
+        if common:
+            if common in seen:
+                continue
+            seen.add(common)
+            opts = [BY_NAME[p + common] for p in LOOP_PREFIXES]
+            value = opts[0].value
+            text = f"-P_{common}" + (f" {value}" if value else "")
+            meaning = opts[0].help.split(": ", 1)[1]
+            default = ", ".join(f"{p[:-1]} {_default_text(BY_NAME[p + common])}"
+                                for p in LOOP_PREFIXES)
+            rows.append((text, meaning, default))
+            continue
+        rows.append((f"-{o.name}" + (f" {o.value}" if o.value else ""), o.help,
+                     _default_text(o)))
+    return rows
+
+
+def usage():
+    """The text of -help."""
+    lines = ["contact: 3D frictional contact of an elastic body on a rigid foundation "
+             "(duality method)",
+             "Options (the scene file gives defaults, the command line wins; P = fp_, "
+             "uzawa_, apg_, ssn_):"]
+    for text, meaning, default in _rows():
+        d = f" [{default}]" if default else ""
+        lines.append(f"  {text:<34} {meaning}{d}")
+    lines += ["  -scene_<path> VALUE                any other scalar of the scene, e.g. "
+              "-scene_boundary_top_traction_2 -40",
+              "PETSc's own: -ssn_ksp_type, -ssn_pc_type, ... (the Newton systems), "
+              "-elastic_ksp_*, -elastic_pc_* (no contact part), -log_view"]
+    return "\n".join(lines)
+
+
+def markdown_table():
+    """The README's option table."""
+    out = ["| option | meaning | default |", "|---|---|---|"]
+    for text, meaning, default in _rows():
+        out.append(f"| `{text.replace('|', chr(92) + '|')}` | {meaning.replace('|', chr(92) + '|')} | "
+                   f"{default.replace('|', chr(92) + '|')} |")
+    return "\n".join(out)

@@ -9,7 +9,6 @@ import json
 import os
 
 import numpy as np
-from mpi4py import MPI
 
 from . import residuals as res
 
@@ -58,7 +57,7 @@ def gather_contact(problem, x=None):
         return None if comm.rank else {k: np.zeros((0, 3) if k == "coordinates" else 0)
                                        for k in ("coordinates", "pressure", "slip", "status")}
     if x is None:
-        x = getattr(problem, "last_increment", None)
+        x = problem.last_increment
     f = res.contact_fields(problem, x)
     pressure = f["l"]
     slip = np.linalg.norm(f["u"][:, :2], axis=1)

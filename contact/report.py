@@ -45,14 +45,14 @@ def summary(problem, time_total):
         "normal_force": problem.normal_force(),
         "loading": problem.loading,
         "load_steps": problem.load_steps,
-        "held_by_friction": getattr(problem, "friction_held", None) is not None,
+        "held_by_friction": problem.friction_held is not None,
         "foundation_normal": [float(c) for c in problem.normal],
-        "contact_frame": getattr(problem, "frame", None) is not None,
-        "steps": getattr(problem, "step_log", None) or [],
+        "contact_frame": problem.frame is not None,
+        "steps": problem.step_log,
         "skipped": problem.skipped,
         "energy": res.energy(problem),
         "max_displacement": res.max_displacement(mpicomm, problem.displacement()),
-        "residuals": getattr(problem, "residuals", None) or res.residuals(problem),
+        "residuals": problem.residuals or res.residuals(problem),
         "converged": bool(problem.converged),
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
         "peak_rss_mib": mpicomm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

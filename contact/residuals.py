@@ -56,15 +56,17 @@ def energy(problem, x=None):
     return J
 
 
-def contact_fields(problem, x=None):
-    """Owned contact-node arrays: dict of u (m,3), R (m,3), w, F, l (multiplier), g."""
+def contact_fields(problem, x=None, b=None, gap=None):
+    """Owned contact-node arrays: dict of u (m,3), R (m,3), w, F, gap, l (multiplier).
+    b, gap: a load increment's (default the problem's)."""
     x = x if x is not None else problem.x
+    b = b if b is not None else problem.b
     cs = problem.cs
     R = x.duplicate()
     problem.A.mult(x, R)
-    R.axpy(-1.0, problem.b)                      # R = A u - b
+    R.axpy(-1.0, b)                              # R = A u - b
     out = {"w": cs.local_array(cs.w), "F": cs.local_array(cs.F),
-           "gap": cs.local_array(cs.gap)}
+           "gap": cs.local_array(gap if gap is not None else cs.gap)}
     tmp = cs.vec()
     u, r = np.zeros((cs.local_size, 3)), np.zeros((cs.local_size, 3))
     for c in range(3):
@@ -79,14 +81,14 @@ def contact_fields(problem, x=None):
     return out
 
 
-def residuals(problem, x=None, slip_tol=1e-6):
-    """The relative residuals documented above (dict)."""
+def residuals(problem, x=None, slip_tol=1e-6, b=None, gap=None):
+    """The relative residuals documented above (dict); b, gap: a load increment's."""
     comm = problem.comm.tompi4py()
     x = x if x is not None else problem.x
     umax = max_displacement(comm, x)
     if problem.cs is None or problem.cs.size == 0:
         return {"penetration": 0.0, "complementarity": 0.0, "coulomb": 0.0}
-    f = contact_fields(problem, x)
+    f = contact_fields(problem, x, b, gap)
     w, F, u, R = f["w"], f["F"], f["u"], f["R"]
     g = R[:, 2] / w
     sig_t = R[:, :2] / w[:, None]
@@ -95,7 +97,7 @@ def residuals(problem, x=None, slip_tol=1e-6):
     gmax = _max(comm, np.abs(g))
     # a pressure scale for when the contact carries (almost) nothing: the largest nodal
     # load spread over the largest contact weight (about the applied traction)
-    bmax = problem.b.norm(PETSc.NormType.INFINITY)
+    bmax = (b if b is not None else problem.b).norm(PETSc.NormType.INFINITY)
     p_ref = bmax / max(_max(comm, w), 1e-300)
     gden = max(gmax, p_ref) if max(gmax, p_ref) > 0 else 1.0
     uden = umax if umax > 0 else 1.0

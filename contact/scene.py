@@ -14,18 +14,10 @@ import re
 import yaml
 from petsc4py import PETSc
 
-#: named options -> path in the scene
-NAMED = {
-    "nd": ("mesh", "nd"),
-    "friction": ("contact", "friction"),
-    "young": ("material", "young"),
-    "poisson": ("material", "poisson"),
-    "uzawa_r": ("solver", "uzawa_r"),
-    "apg_rtol": ("solver", "apg_rtol"),
-    "uzawa_rtol": ("solver", "uzawa_rtol"),
-    "fp_rtol": ("solver", "fp_rtol"),
-    "load_steps": ("loading", "steps"),
-}
+from . import options
+
+#: named options -> path in the scene (declared in the option registry, options.py)
+NAMED = options.NAMED
 
 DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                              "runs", "paper_beam.yaml")
@@ -248,9 +240,8 @@ def _material(mat):
 def _rest(scene):
     """Solver values, body force, friction and the boundary parts."""
     sol = scene.setdefault("solver", {})
-    _positive(sol.setdefault("uzawa_r", 1e8), "uzawa_r")
-    for k, v in (("apg_rtol", 1e-8), ("uzawa_rtol", 1e-6), ("fp_rtol", 1e-6)):
-        _positive(sol.setdefault(k, v), k)
+    for k in ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol"):
+        _positive(sol.setdefault(k, options.SCENE_SOLVER_DEFAULTS[k]), k)
     _numbers(scene.setdefault("body_force", [0.0, 0.0, 0.0]), 3, "body_force")
     steps = scene.setdefault("loading", {}).setdefault("steps", 1)
     if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:

@@ -3,10 +3,12 @@
 M(v, l) = J_g(v) + 1/(2r) sum_j w_j [((l_j + r (v_nu,j - gap_j))^+)^2 - l_j^2]
     u^{k+1} = argmin_v M(v, l^k)            (inner solver: APG or SSN, from u^k)
     l^{k+1} = (l^k + r (u_nu^{k+1} - gap))^+ ,  u_nu = -u_k (contactset.py)
-The inner solvers see only l + r v_nu: they are handed the shifted multiplier
-l - r gap (gap = 0 for the paper's scene, where nothing is shifted).
+Uzawa owns r, the subproblem (contact/subproblem.py) and the multiplier: each step hands
+the subproblem the shifted multiplier l - r gap (gap = 0 for the paper's scene, where
+nothing is shifted) and the slip bounds lambda = F g w, and the inner solver minimises it.
 Stop when ||l^{k+1} - l^k|| / ||l^{k+1}|| < rtol (both zero: no contact, converged).
 Options (prefix -uzawa_):
+  -uzawa_r R                the parameter r (default 1e8, the paper's)
   -uzawa_inner apg|ssn      inner solver: accelerated proximal gradient (the paper's,
                             default) or semismooth Newton (contact/newton.py)
   -uzawa_warm_start <bool>  start the inner solve from u^k (default true, the paper's);
@@ -18,6 +20,7 @@ Options (prefix -uzawa_):
 from petsc4py import PETSc
 
 from .loop import InexactControl, Loop
+from .subproblem import Subproblem
 
 _EV = PETSc.Log.Event("Uzawa")
 
@@ -25,53 +28,61 @@ INNER = ("apg", "ssn")
 
 
 class Uzawa(Loop):
-    """Options prefix ``-uzawa_`` (and ``-uzawa_r`` for the parameter r)."""
+    """Options prefix ``-uzawa_``. `solver`: the inner solver (APG or SSN); A, b, cs: the
+    discrete problem (b and the gap may be replaced per load increment: `set_load`)."""
 
     prefix = "uzawa_"
-    options = ("warm_start", "inexact", "inner", "r")
     title = "Uzawa"
     indent = 2
     hint = "raise -uzawa_max_it"
 
-    def __init__(self, inner, rtol=1e-6, max_it=1000):
-        super().__init__(inner.comm, rtol, max_it)
-        self.inner = inner
-        self.warm_start = True
-        self.inexact = 0.0
-        cs = inner.cs
+    def __init__(self, A, b, cs, solver):
+        super().__init__(solver.comm)
+        self.A, self.cs, self.solver = A, cs, solver
+        self.b, self.gap = b, cs.gap
+        self.sub = None
         self.lam = cs.vec()
         self.l_new, self.un = cs.vec(), cs.vec()
         self.l_shift = cs.vec()
 
-    def set_from_options(self):
-        super().set_from_options()
-        o = PETSc.Options(self.prefix)
-        self.warm_start = o.getBool("warm_start", self.warm_start)
-        self.inexact = self.read_inexact(o)
+    def check_options(self):
+        self.check_inexact()
+        if self.inner not in INNER:
+            raise ValueError(f"-uzawa_inner must be one of {', '.join(INNER)}, "
+                             f"got {self.inner!r}")
+        self.sub = Subproblem(self.A, self.b, self.cs, self.r)
 
-    def solve(self, x, l, g=None):
-        """Saddle point for slip bound F g: x (start, then u) and l (start, then l) in place."""
-        inner = self.inner
-        cs = inner.cs
+    def set_load(self, b, gap):
+        """The load and gap of the next solves (a load increment's); the discrete problem's
+        own vectors are not touched."""
+        self.b, self.gap = b, gap
+        self.sub.set_load(b)
+
+    def solve(self, x, l, g=None, rtol=None):
+        """Saddle point for slip bound F g: x (start, then u) and l (start, then l) in place;
+        rtol: a looser tolerance for this call (the fixed point's inexact mode)."""
+        cs, sub, inner = self.cs, self.sub, self.solver
+        self.begin(rtol)
         lam = None
         if g is not None and cs.has_friction:
             self.lam.pointwiseMult(cs.F, g)
             self.lam.pointwiseMult(self.lam, cs.w)         # lambda_j = F_j g_j w_j
             lam = self.lam
+        has_gap = self.gap.norm(PETSc.NormType.INFINITY) > 0.0
         _EV.begin()
         k, reason, ctl = 0, None, InexactControl(self.inexact)
         while reason is None:
             k += 1
             if not self.warm_start:
                 x.set(0.0)
-            inner.loose_rtol = ctl.tolerance()
             ls = l
-            if cs.has_gap:
+            if has_gap:
                 ls = self.l_shift
-                ls.waxpy(-inner.r, cs.gap, l)             # l - r gap
-            inner.solve(x, ls, lam)
+                ls.waxpy(-self.r, self.gap, l)             # l - r gap
+            sub.set_multiplier(ls, lam)
+            inner.solve(sub, x, rtol=ctl.tolerance())
             cs.normal_displacement(x, self.un)
-            self.l_new.waxpy(inner.r, self.un, ls)        # l + r (u_nu - gap)
+            self.l_new.waxpy(self.r, self.un, ls)          # l + r (u_nu - gap)
             self.l_new.pointwiseMax(self.l_new, cs.zero)
             l.axpy(-1.0, self.l_new)                       # l <- l - l_new (the change)
             change, norm = l.norm(), self.l_new.norm()
@@ -79,7 +90,6 @@ class Uzawa(Loop):
             reason = self.test(k, change, norm)
             ctl.update(self.residual)
             self._monitor(k, self.residual, f"  ({inner.title} its {inner.iterations})")
-        inner.loose_rtol = None
         _EV.end()
         self.finish(k, reason)
         return x, l

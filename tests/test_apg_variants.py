@@ -6,6 +6,7 @@ from petsc4py import PETSc
 
 from contact import output
 from contact.apg import APG
+from contact.subproblem import Subproblem
 from contact.problem import ContactProblem
 
 
@@ -95,14 +96,17 @@ def test_a_y_by_linearity_equals_the_matmult(comm, restart, step):
     cs = pr.cs
     runs = []
     for linear in (True, False):
-        apg = APG(pr.A, pr.b, cs, 1e6, rtol=1e-14, max_it=5000)
+        apg = APG(comm)
+        apg.rtol, apg.max_it = 1e-14, 5000
         apg.restart, apg.step, apg.ay_by_linearity = restart, step, linear
         lam = cs.vec()
         lam.pointwiseMult(cs.F, cs.w)
         lam.scale(30.0)                                # lambda = F w g with g = 30
+        sub = Subproblem(pr.A, pr.b, cs, 1e6)
+        sub.set_multiplier(cs.vec(), lam)
         x = pr.A.createVecRight()
         x.set(0.0)
-        apg.solve(x, cs.vec(), lam)
+        apg.solve(sub, x)
         runs.append((apg, output.gather_nodes(pr, x)))       # rank 0: (xyz, u, cells)
     (lin, ulin), (mat, umat) = runs
     assert abs(lin.iterations - mat.iterations) <= 2

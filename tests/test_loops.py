@@ -77,11 +77,10 @@ class _Map:
     def __init__(self, comm, k, rotate=False):
         self.comm, self.k, self.rotate = comm, k, rotate
         self.cs = self._CS(comm)
-        self.inner = self
-        self.iterations, self.loose_rtol = 1, None
+        self.iterations = 1
         self.a = self.cs.vec(1.0)
 
-    def solve(self, x, l, g):
+    def solve(self, x, l, g, rtol=None):
         d = g.getArray(readonly=True) - 1.0
         if self.rotate:
             d = d[::-1] * [1.0, -1.0] if d.size else d
@@ -93,8 +92,9 @@ def _fixed_point(comm, k, rotate=False, relaxation=None):
     m = _Map(comm, k, rotate)
     if relaxation is not None:
         PETSc.Options().setValue("fp_relaxation", str(relaxation))
-    fp = FixedPoint(m, rtol=1e-10, max_it=100)
+    fp = FixedPoint(m, m.cs)
     fp.set_from_options()
+    fp.rtol, fp.max_it = 1e-10, 100
     x, l = m.cs.vec(), m.cs.vec()
     return fp, l
 

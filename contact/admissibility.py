@@ -1,0 +1,118 @@
+"""Admissibility of a scene's discrete problem, checked before any solve.
+
+  prescribed displacement  a nonzero u_D must not reach a contact node (the loops solve for
+                           u - u_D, which must vanish there);
+  rigid motion             the dirichlet parts and the foundation (its normal direction)
+                           must hold every rigid-body motion; motions tangential to the
+                           foundation may be left to friction (F > 0): the body is then
+                           "friction held", and the statics of a rigid block decide;
+  lift-off                 a body held only by the foundation must not be pulled away;
+  statics                  a friction-held body's tangential load T must not exceed F_max N
+                           at any load step (-statics_check false skips it).
+Each raises SceneError with one line naming the problem.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem, options
+from .scene import SceneError, ramp_factor
+
+
+def check(disc):
+    """All checks; returns `friction_held`: None, or (Q, frame) of the rigid motions that
+    friction alone must hold (driver.py starts their fixed point from a pressure)."""
+    check_prescribed_on_contact(disc)
+    return check_rigid_motion(disc)
+
+
+def check_prescribed_on_contact(disc):
+    """SceneError when a nonzero prescribed displacement touches a contact node (the
+    loops solve for u - u_D, which must vanish there)."""
+    if disc.u_D is None:
+        return
+    cs, tmp, worst = disc.cs, disc.cs.vec(), 0.0
+    for c in range(3):
+        cs.gather(disc.u_D, tmp, c)
+        worst = max(worst, tmp.norm(PETSc.NormType.INFINITY))
+    tmp.destroy()
+    if worst > 0.0:
+        raise SceneError("a nonzero prescribed displacement reaches a contact node; "
+                         "prescribe it away from the contact part (or press through "
+                         "contact.gap)")
+
+
+def check_rigid_motion(disc):
+    """SceneError when the dirichlet parts and the foundation leave a rigid-body motion
+    free, or when only the foundation holds the body and the load pulls it away.
+
+    Motions tangential to the foundation (translations along it, rotation about its
+    normal) may be left to friction (F > 0): the body is then `friction_held`, and the
+    statics of a rigid block decide (`check_friction_statics`)."""
+    held = None
+    cpts = disc.cs.coordinates if disc.cs is not None else None
+    n = disc.normal
+    free, Q, frame = fem.free_rigid_modes(disc.coordinates, disc.clamped_xyz, cpts, n)
+    # the motions the dirichlet parts alone leave free (the foundation aside)
+    unheld = fem.free_rigid_modes(disc.coordinates, disc.clamped_xyz) if cpts is not None \
+        else None
+    if free:
+        tangential = cpts is not None and fem.tangential_modes(Q, n)
+        if tangential and disc.cs.has_friction:
+            held = (Q, frame)
+            check_friction_statics(disc, Q, unheld[1])
+        else:
+            why = ""
+            if cpts is not None:
+                why = " (the foundation holds only the normal direction" + (
+                    "; friction could hold the tangential ones, but F = 0)"
+                    if tangential else ")")
+            raise SceneError("the dirichlet parts leave rigid-body motion free ("
+                             + ", ".join(free) + f"){why}: no unique solution; clamp "
+                             "more components or parts")
+    if cpts is None:
+        return held
+    free, Q, frame = unheld
+    if free:
+        b = disc.to_xyz(disc.b)
+        lifts = fem.load_lifts_off(disc.coordinates, b, Q, frame, cpts, n)
+        if b is not disc.b:
+            b.destroy()
+        if lifts:
+            raise SceneError("only the foundation holds the body (" + ", ".join(free) +
+                             " free otherwise) and the load pulls it away: no "
+                             "equilibrium")
+    return held
+
+
+def check_friction_statics(disc, Q, Q0):
+    """Statics of a rigid block, at every load step: where nothing but the foundation
+    holds the body (normal translation in span Q0, the motions the dirichlet parts
+    leave free), the tangential load resultant
+    T along the free translations (those in span Q, the motions friction must hold)
+    must not exceed F_max N, N the normal load pressing the body on the foundation;
+    otherwise the body slides (no static equilibrium). Necessary, not sufficient
+    (moments about the normal are left to the solver). -statics_check 0 skips it."""
+    if not options.get("statics_check"):
+        return
+    n = disc.normal
+    e_n = np.r_[n, 0.0, 0.0, 0.0]
+    if np.linalg.norm(e_n - Q0 @ (Q0.T @ e_n)) > 1e-6:
+        return                               # a dirichlet part takes normal load: N unknown
+    D = fem.free_translations(Q)             # (3, m): orthonormal free directions
+    if D.shape[1] == 0:
+        return
+    mpi = disc.comm.tompi4py()
+    res = [mpi.allreduce(disc.xyz_rows(bg).sum(axis=0)) for _, _, bg in disc.load_groups]
+    fmax = disc.cs.F.max()[1]
+    steps = int(disc.scene.get("loading", {}).get("steps", 1))
+    for k in range(1, steps + 1):
+        t = k / steps
+        R = sum(ramp_factor(r, t) * rg for (r, _, _), rg in zip(disc.load_groups, res))
+        N, T = -float(R @ n), float(np.linalg.norm(D.T @ R))
+        if T > fmax * max(N, 0.0) * (1.0 + 1e-9) + 1e-14 * np.abs(R).max():
+            at = f" at load step {k} of {steps} (t = {t:g})" if steps > 1 else ""
+            raise SceneError(
+                f"the tangential load T = {T:.6g}{at} exceeds the friction limit F N = "
+                f"{fmax:g} x {N:.6g} = {fmax * N:.6g}: the body slides on the "
+                f"foundation (statics of a rigid block; no static equilibrium)")
+

@@ -1,0 +1,196 @@
+"""The discrete problem of a scene: mesh, foundation frame, Q1 stiffness, loads, contact set.
+
+scene -> mesh (DMPlex box, a file DMPlex reads, or gmsh; distributed with METIS) -> boundary
+parts (faces on planes or gmsh physical groups; `mesh.rotate` turns the mesh after they are
+found) -> contact set and its frame (contactset.py, frame.py: a foundation off the axes
+turns the contact nodes' dofs to (t1, t2, n)) -> A (Q1 stiffness in that basis), the load
+groups (the parts sharing a loading ramp, each with its load b_g = f_g - A u_D,g), b = sum_g
+b_g, the prescribed displacement u_D, and the clamped rows eliminated (A and every b_g).
+Nothing here changes after set-up: the driver (driver.py) builds its own load-increment
+vectors, and the solution lives in the problem (problem.py).
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import fem, mesh
+from .contactset import ContactSet
+from .scene import AXES, SceneError, foundation_normal
+
+DEFAULT_RAMP = (0.0, 1.0)
+
+
+class Discretisation:
+    """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`."""
+
+    def __init__(self, scene, comm):
+        self.scene, self.comm = scene, comm
+        self._setup()
+
+    def _read_mesh(self):
+        """The serial DMPlex of the scene's mesh: box, a file DMPlex reads, or gmsh (a .geo
+        meshed, or a .msh read, by gmsh's Python API on rank 0; physical groups -> labels)."""
+        m, comm = self.scene["mesh"], self.comm
+        self.physical_names = []
+        kind = m.get("type", "box")
+        if kind != "gmsh":
+            self.skipped.append("gmsh (not a gmsh mesh)")
+        if kind == "gmsh":
+            from . import gmshio                     # gmsh is imported only here
+            params = {"nd": self.nd, **m.get("parameters", {})}
+            dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
+            return dm
+        if kind == "file":
+            return mesh.read_mesh_file(comm, m["file"])
+        cells = [int(c) * self.nd for c in m.get("cells_per_nd", [1, 1, 1])]
+        return mesh.create_box_mesh(comm, cells, m["lower"], m["upper"])
+
+    def _part_faces(self, name, part, conn, coords):
+        """(nf, 4) local faces of a boundary part: a plane, or a gmsh physical group."""
+        if "physical" in part:
+            group = part["physical"]
+            if group not in self.physical_names:
+                raise SceneError(f"boundary part {name!r}: the mesh has no physical surface "
+                                 f"{group!r} (it has: {', '.join(self.physical_names) or 'none'})")
+            faces = mesh.labelled_faces(self.dm, conn, "physical:" + group)
+            where = f"the physical surface {group!r}"
+        else:
+            axis, value = part["plane"]
+            faces = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
+            where = f"the plane {axis} = {value}"
+        if self.comm.tompi4py().allreduce(faces.shape[0]) == 0:
+            raise SceneError(f"boundary part {name!r}: no cell face lies on {where}")
+        return faces
+
+    def _symmetry_axis(self, name, faces, coords):
+        """k for a symmetry part: all its faces must be normal to e_k (u_k = 0 there)."""
+        n = np.abs(fem.face_normals(faces, coords))
+        k = np.argmax(n, axis=1) if n.size else np.zeros(0, dtype=int)
+        counts = np.bincount(k, minlength=3).astype(float)
+        skew = float(np.max(1.0 - n.max(axis=1))) if n.size else 0.0
+        mpi = self.comm.tompi4py()
+        counts, skew = mpi.allreduce(counts), mpi.allreduce(skew, op=MPI.MAX)
+        if np.count_nonzero(counts) != 1 or skew > 1e-8:
+            raise SceneError(f"boundary part {name!r}: a symmetry part must be one plane "
+                             f"normal to x, y or z (its faces point along "
+                             f"{', '.join('xyz'[i] for i in np.flatnonzero(counts))})")
+        return int(np.argmax(counts))
+
+    def _setup(self):
+        sc, comm = self.scene, self.comm
+        m = sc["mesh"]
+        self.nd = int(m.get("nd", 1))
+        self.skipped = []                        # what this scene does not need (reported)
+        self.dm = dm = self._read_mesh()
+        self.partitioner = mesh.distribute(dm)
+        opts = PETSc.Options()
+        for kind, setter in (("vec_type", dm.setVecType), ("mat_type", dm.setMatType)):
+            for name in ("dm_" + kind, kind):          # -dm_vec_type or plain -vec_type
+                if opts.hasName(name):
+                    setter(opts.getString(name))
+                    break
+        mesh.displacement_section(dm)
+        self.conn, self.coords = conn, coords = mesh.cell_vertices(dm)
+        mesh.check_cells(comm, conn, coords)
+
+        bnd = sc["boundary"]
+        parts = {name: self._part_faces(name, part, conn, coords)
+                 for name, part in bnd.items()}
+        if "rotate" in m:                        # after the parts: planes name the mesh as read
+            self.coords = coords = mesh.rotate_coordinates(dm, coords, **m["rotate"])
+        self.parts = parts
+        mesh.label_parts(dm, parts)
+        body_force = sc.get("body_force", [0, 0, 0])
+        if not any(body_force):
+            self.skipped.append("body-force assembly (no body force)")
+        named = [(n, (parts[n], [AXES[c] for c in p["components"]],
+                      p.get("displacement", [0.0, 0.0, 0.0])))
+                 for n, p in bnd.items() if p["type"] == "dirichlet"]
+        named += [(n, (parts[n], [self._symmetry_axis(n, parts[n], coords)], [0.0] * 3))
+                  for n, p in bnd.items() if p["type"] == "symmetry"]
+        constraints = [c for _, c in named]
+        #: clamped rows in x, y, z (the rigid-motion checks) and in the loops' basis
+        self.clamped_xyz = self.clamped = fem.dirichlet_rows(
+            dm, coords.shape[0], [c[:2] for c in constraints])
+        self.coordinates = fem.global_coordinates(dm, coords)
+
+        cfaces = [parts[n] for n, p in bnd.items() if p["type"] == "contact"]
+        self.has_contact_part = bool(cfaces)
+        self.normal = foundation_normal(sc)
+        self.cs = self.frame = None              # frame: contact/frame.py (tilted foundation)
+        if self.has_contact_part:
+            con = sc.get("contact", {})
+            fd = con.get("foundation", {})
+            template = dm.createGlobalVec()
+            self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
+                                 con.get("friction", 0.0), template, normal=self.normal,
+                                 point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"))
+            template.destroy()
+            self.frame, self.clamped = self.cs.frame, self.cs.clamped_rows
+        mat = sc["material"]
+        self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"],
+                                        frame=self.frame)
+        self.u_D = None                          # prescribed displacement (None: all zero)
+        if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in constraints):
+            self.u_D = self.to_frame(fem.dirichlet_values(dm, coords.shape[0], constraints))
+        # load groups: the parts sharing a ramp [t0, t1] (loading schedule), each with its
+        # load b_g = f_g - A u_D,g (u_D,g: u_D with the other groups' values set to 0, so
+        # that sum_g u_D,g = u_D); b = sum_g b_g is the full load
+        ramps = sorted({tuple(p.get("ramp", DEFAULT_RAMP)) for p in bnd.values()
+                        if p["type"] in ("traction", "dirichlet")} | {DEFAULT_RAMP})
+        self.load_groups = []
+        for ramp in ramps:
+            mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
+            bg = fem.load_vector(dm, conn, coords,
+                                 [(parts[n], bnd[n]["traction"]) for n in sorted(mine)
+                                  if bnd[n]["type"] == "traction"],
+                                 body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0])
+            self.to_frame(bg)
+            masked = [(f, c, v if n in mine else [0.0] * 3) for n, (f, c, v) in named]
+            if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in masked):
+                u_g = self.to_frame(fem.dirichlet_values(dm, coords.shape[0], masked))
+                lift = bg.duplicate()
+                self.A.mult(u_g, lift)
+                bg.axpy(-1.0, lift)              # b_g - A u_D,g: solve for u - u_D
+                u_g.destroy()
+                lift.destroy()
+            self.load_groups.append((ramp, sorted(mine), bg))
+        self.b = self.load_groups[0][2].duplicate()
+        self.b.set(0.0)
+        for _, _, bg in self.load_groups:
+            self.b.axpy(1.0, bg)
+        self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
+        zeros = np.zeros(len(self.clamped))
+        for _, _, bg in self.load_groups:        # the eliminated rows carry no load
+            bg.setValues(self.clamped, zeros)
+            bg.assemble()
+        if len(self.load_groups) == 1:           # one group: b itself
+            self.load_groups[0][2].destroy()
+            self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
+        self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
+        self.n_dofs = self.A.getSize()[0]
+
+    def to_frame(self, vec):
+        """In place: a Vec in x, y, z -> the loops' basis (the same Vec without a frame)."""
+        return self.frame.to_frame(vec) if self.frame is not None else vec
+
+    def to_xyz(self, x):
+        """x (the loops' basis) in x, y, z components: x itself without a contact frame,
+        else a new Vec (contact/frame.py)."""
+        return self.frame.to_xyz(x.copy()) if self.frame is not None else x
+
+    def displacement(self, x):
+        """u = x + u_D in x, y, z: the displacement of the loops' unknown x = u - u_D."""
+        if self.u_D is None:
+            return self.to_xyz(x)
+        u = x.duplicate()
+        u.waxpy(1.0, x, self.u_D)
+        return self.frame.to_xyz(u) if self.frame is not None else u
+
+    def xyz_rows(self, vec):
+        """The owned (n, 3) values of `vec` in x, y, z (setup and checks only)."""
+        v = self.to_xyz(vec)
+        a = v.getArray(readonly=True).reshape(-1, 3).copy()
+        if v is not vec:
+            v.destroy()
+        return a

@@ -1,0 +1,251 @@
+"""The solve: what the scene needs, and the paper's three loops nested.
+
+    no contact part   one KSP solve (CG + GAMG)                               `solve_linear`
+    F = 0             Uzawa over the inner solver (no fixed point, no prox)  `solve_contact`
+    F > 0             fixed point on g over Uzawa over the inner solver      `solve_contact`
+    loading.steps N   N load increments, each the static problem of the increment
+                      (its own load and gap vectors; the discretisation is not touched)
+    -c2f_levels N     first the scene at Nd/2 (itself from Nd/4, ...), its x, l, g
+                      interpolated as the start                               `coarse_start`
+The loops are built for each static solve (`Loops`), under the solver mode's preset
+(options.inserted: the preset lasts for that solve only; options given by the user win).
+"""
+import copy
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem, options, residuals as res, transfer
+from .apg import APG
+from .discretisation import DEFAULT_RAMP
+from .fixedpoint import FixedPoint
+from .loop import ResidualCheckError
+from .newton import SemismoothNewton
+from .scene import ramp_factor
+from .uzawa import Uzawa
+
+#: option presets; "fast" = semismooth Newton inner solver, warm starts, inexact loops
+SOLVER_MODES = {
+    "faithful": {},
+    "fast": {"uzawa_inner": "ssn", "fp_warm_start": "xl", "uzawa_inexact": "0.1",
+             "fp_inexact": "0.1", "ssn_pc_lag": "5", "ssn_ksp_rtol": "1e-3",
+             "ssn_mg_levels_ksp_max_it": "1"},
+}
+
+
+def solver_mode(scene):
+    """-solver_mode (or the scene's solver.mode), checked."""
+    mode = options.get("solver_mode", scene)
+    if mode not in SOLVER_MODES:
+        raise ValueError(f"-solver_mode must be one of {', '.join(SOLVER_MODES)}, "
+                         f"got {mode!r}")
+    return mode
+
+
+class Loops:
+    """Fixed point (F > 0) over Uzawa over the inner solver (APG or SSN), from the options
+    (the registry's defaults, the scene's solver values, the command line)."""
+
+    def __init__(self, disc, b, gap):
+        scene, cs = disc.scene, disc.cs
+        kind = options.get("uzawa_inner", scene)
+        if kind == "ssn":
+            inner = SemismoothNewton(disc.comm, disc.clamped, disc.diag_scale)
+        else:
+            inner = APG(disc.comm)
+        self.inner = inner.set_from_options(scene)
+        self.uzawa = Uzawa(disc.A, b, cs, inner).set_from_options(scene)
+        self.uzawa.set_load(b, gap)
+        self.fp = FixedPoint(self.uzawa, cs).set_from_options(scene) if cs.has_friction \
+            else None
+
+    def solve(self, x, l, g0):
+        """x, l in place; returns g, the slip bound of the final Tresca solve."""
+        if self.fp is None:                          # F = 0: Uzawa alone, no prox
+            self.uzawa.solve(x, l, None)
+            return None
+        self.fp.solve(x, l, g0)                      # g <- l(g): Uzawa(inner) each step
+        return self.fp.g
+
+
+def solve(pr):
+    """Run what the scene needs on the problem `pr` (problem.py); sets its solution."""
+    steps = int(pr.scene.get("loading", {}).get("steps", 1))
+    if pr.cs is None or pr.cs.size == 0:
+        pr.skipped.append("Uzawa and fixed-point loops (no contact node): one KSP solve")
+        if steps > 1:
+            pr.skipped.append("load steps (linear problem: one solve at the full load)")
+        solve_linear(pr)
+        steps = 1
+    elif steps == 1:
+        solve_contact(pr, pr.b, pr.cs.gap, coarse_start(pr))
+        check_solution(pr, pr.b, pr.cs.gap)
+    else:
+        solve_incremental(pr, steps)
+    pr.load_steps = steps
+    pr.loading = ("static: one solve at the full load" if steps == 1 else
+                  f"quasi-static: {steps} load increments, friction on the increments")
+
+
+def solve_linear(pr):
+    pr.mode = "linear"
+    ksp = fem.elasticity_ksp(pr.A)
+    ksp.solve(pr.b, pr.x)
+    if ksp.getConvergedReason() < 0:
+        raise RuntimeError(f"linear elasticity KSP diverged: reason "
+                           f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} its")
+    pr.ksp_iterations = ksp.getIterationNumber()
+    ksp.destroy()
+
+
+def solve_contact(pr, b, gap, start=None, g0=None):
+    """One static contact solve for load b and gap: pr.x, pr.l, pr.g set; start: (l0, g0)
+    of a coarse-to-fine start; g0: the fixed point's start (the increment before)."""
+    pr.solver_mode = solver_mode(pr.scene)
+    with options.inserted(SOLVER_MODES[pr.solver_mode]):
+        loops = Loops(pr.disc, b, gap)
+        pr.loops = loops
+        cs = pr.cs
+        pr.l = cs.vec()
+        if start is not None:
+            start[0].copy(pr.l)
+            g0 = start[1]
+        if cs.has_friction and g0 is None and pr.friction_held is not None:
+            g0 = normal_pressure(pr, loops, b, gap)
+        if not cs.has_friction:
+            note = "fixed-point loop and prox (F = 0)"
+            if note not in pr.skipped:
+                pr.skipped.append(note)
+        pr.mode = "coulomb" if cs.has_friction else "frictionless"
+        g = loops.solve(pr.x, pr.l, g0)
+        pr.g = g if g is not None else cs.vec()
+
+
+def solve_incremental(pr, n):
+    """N increments: increment k is the static problem for du with the load
+    sum_g f_g(t_k) b_g - A u_(k-1), the gap gap - u_nu,(k-1) and friction on du_tau
+    (quasi-static Coulomb friction, implicit Euler in the load parameter); its fixed point
+    starts from the pressure of the increment before. pr.x holds u - u_D at the end."""
+    cs, A = pr.cs, pr.A
+    b, gap, un = pr.b.duplicate(), cs.vec(), cs.vec()
+    v = pr.x.duplicate()
+    v.set(0.0)
+    pr.step_log, g_start = [], None
+    for k in range(1, n + 1):
+        A.mult(v, b)
+        b.scale(-1.0)
+        factors = [ramp_factor(r, k / n) for r, _, _ in pr.load_groups]
+        for f, (_, _, bg) in zip(factors, pr.load_groups):
+            b.axpy(f, bg)                            # sum_g f_g(t_k) b_g - A u_(k-1)
+        cs.normal_displacement(v, un)
+        gap.waxpy(-1.0, un, cs.gap)                  # gap - u_nu,(k-1)
+        pr.x.set(0.0)
+        solve_contact(pr, b, gap, g0=g_start)
+        check_solution(pr, b, gap)
+        v.axpy(1.0, pr.x)
+        if k == n:
+            pr.last_increment = pr.x.copy()          # the slip of the last increment
+        pr.step_log.append({"step": k, "load_factor": k / n,
+                            "part_factors": {p: f for f, (r, names, _) in
+                                             zip(factors, pr.load_groups) for p in names
+                                             if r != DEFAULT_RAMP},
+                            "normal_force": pr.normal_force(),
+                            "iterations": pr.iterations(single=True),
+                            "residuals": dict(pr.residuals)})
+        if cs.has_friction:
+            g_start = pr.l.copy()
+    v.copy(pr.x)
+    for vec in (b, gap, un, v):
+        vec.destroy()
+
+
+def check_solution(pr, b, gap):
+    """The loops stop on a small change of their iterate, which a vanishing step also
+    gives: check the answer itself. Raises ResidualCheckError when a residual of
+    contact/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
+    tol = options.get("check_tol", pr.scene)
+    pr.residuals = res.residuals(pr, pr.x, b=b, gap=gap)
+    worst = max(pr.residuals, key=pr.residuals.get)
+    value = pr.residuals[worst]
+    if tol > 0 and not value <= tol and pr.converged:
+        pr.check_passed = False
+        inner = pr.loops.inner
+        raise ResidualCheckError(
+            f"solution check failed: the loops stopped, but the {worst} residual is "
+            f"{value:.2e} > {tol:g} (-check_tol); with r = {pr.loops.uzawa.r:g} the "
+            f"{inner.title} steps may be too short to move: try a smaller "
+            f"-uzawa_r or tighter -{inner.prefix}rtol / -uzawa_rtol")
+    pr.check_passed = bool(value <= tol) if tol > 0 else None
+
+
+def coarse_start(pr):
+    """Coarse-to-fine start (-c2f_levels N): solve the scene on the mesh nd/2 (itself
+    started from nd/4, ..., N levels), prolong x, l, g to this mesh (Q1 interpolation,
+    contact/transfer.py). Returns (l0, g0) contact Vecs, or None."""
+    from .problem import ContactProblem
+    levels = pr.c2f_levels
+    if levels is None:
+        levels = options.get("c2f_levels", pr.scene)
+    if levels < 0:
+        raise ValueError(f"-c2f_levels must be >= 0, got {levels}")
+    if levels == 0 or pr.nd < 2 or pr.scene["mesh"].get("type", "box") != "box" \
+            or pr.scene.get("loading", {}).get("steps", 1) > 1:
+        return None
+    if pr.frame is not None or "rotate" in pr.scene["mesh"]:
+        note = "coarse-to-fine start (a rotated mesh or foundation: no grid on x, y, z)"
+        if note not in pr.skipped:
+            pr.skipped.append(note)
+        return None
+    sc = copy.deepcopy(pr.scene)
+    sc["mesh"]["nd"] = pr.nd // 2
+    coarse = ContactProblem(sc, pr.comm, c2f_levels=levels - 1).solve()
+    pr.coarse_runs = coarse.coarse_runs + [
+        {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
+         "iterations": coarse.iterations()}]
+    transfer.prolong_displacement(coarse, pr, coarse.x, pr.x)
+    l0, g0 = pr.cs.vec(), pr.cs.vec()
+    transfer.prolong_contact(coarse, pr, coarse.l, l0)
+    if coarse.g is not None:
+        transfer.prolong_contact(coarse, pr, coarse.g, g0)
+    PETSc.Sys.Print(f"c2f: started Nd = {pr.nd} from the solution at Nd = {coarse.nd}",
+                    comm=pr.comm)
+    return l0, g0
+
+
+def normal_pressure(pr, loops, b, gap):
+    """g^0 for a body held tangentially by friction alone (the paper's g^0 = 0 would
+    leave the first Tresca problem nothing to hold it with): the frictionless pressure
+    under the load b_n = b - M (M^T M)^-1 M^T b, i.e. b without its work on the free
+    tangential rigid motions M. Its Uzawa iterations count in the totals."""
+    Q, (x0, h) = pr.friction_held
+    xyz = pr.coordinates.getArray(readonly=True).reshape(-1, 3)
+    modes = fem.rigid_modes(xyz, x0, h)                   # (nv, 3, 6)
+    M = []
+    for q in Q.T:
+        m = b.duplicate()
+        m.setArray((modes @ q).ravel())
+        M.append(pr.disc.to_frame(m))
+    G = np.array([[mi.dot(mj) for mj in M] for mi in M])
+    c = np.linalg.solve(G, np.array([mi.dot(b) for mi in M]))
+    b_n = b.copy()
+    for ci, m in zip(c, M):
+        b_n.axpy(-ci, m)
+    ssn = isinstance(loops.inner, SemismoothNewton)
+    if ssn:                     # A + P is singular on M (and may be on more, when the
+        loops.inner.regularize(1e-3 * pr.diag_scale)      # active nodes are few)
+    l0 = pr.cs.vec()
+    pr.x.set(0.0)
+    loops.uzawa.set_load(b_n, gap)
+    try:
+        loops.uzawa.solve(pr.x, l0, None)
+    finally:
+        loops.uzawa.set_load(b, gap)
+        if ssn:                                           # next solve: a new K, PC
+            loops.inner.regularize(0.0)
+        for vec in M + [b_n]:
+            vec.destroy()
+    pr.x.set(0.0)
+    PETSc.Sys.Print(f"fp: g^0 = the frictionless pressure (normal force "
+                    f"{l0.dot(pr.cs.w):.6g}); the body is held tangentially by "
+                    f"friction alone", comm=pr.comm)
+    return l0
