@@ -1,0 +1,324 @@
+"""An independent discretisation of a box scene, solved by the conic reference.
+
+The tests' conic reference (`socp.py`) solves the discrete problem it is handed; handed
+the package's own stiffness, load, weights and contact dofs, it cannot see a bug in
+them. This module builds all of them again from a scene dict, with its own code and
+textbook formulas (it imports nothing from the ``contact`` package but the conic
+solver next to it):
+
+* Mesh: the box ``lower``..``upper`` with ``cells_per_nd * nd`` cells per direction;
+  nodes on a structured grid, node (i, j, k) has number ``i + (nx+1) (j + (ny+1) k)``
+  (x fastest, then y, then z: the same as sorting by (z, y, x)); dof ``3 a + c``.
+* Q1 (trilinear, 8-node) hexahedra, isoparametric, 2x2x2 Gauss quadrature, isotropic
+  Hooke's law in Voigt form (engineering shear strains), vectorised over the cells.
+  Local node ``q = qx + 2 qy + 4 qz`` sits at the reference corner
+  ``(2qx-1, 2qy-1, 2qz-1)``; N_q = 1/8 (1 + xi_q xi)(1 + eta_q eta)(1 + zeta_q zeta).
+* Face integrals (consistent tractions, contact weights): bilinear faces, 2x2 Gauss,
+  surface element |dx/ds x dx/dt|. Contact weight w_j = int N_j ds over the contact
+  face (the trapezoidal rule on a uniform grid).
+* Body force: int N_a b dx (2x2x2 Gauss).
+* Boundary parts by planes ``[axis, value]`` lying on a face of the box: ``dirichlet``
+  (listed components, zero displacement only), ``symmetry`` (zero normal component),
+  ``traction``, ``contact`` (the plane z = 0 only, rigid foundation z <= 0, normal +z,
+  no gap). Contact nodes: the nodes of the contact plane whose z dof is not clamped.
+* Friction F: a number or a NumPy expression in x, y, z evaluated at the contact nodes.
+
+Anything else (mesh files, rotations, nonzero prescribed displacements, load steps or
+ramps, other foundations, gaps) raises NotImplementedError.
+
+`solve(scene)` then solves the discrete problem with `socp.solve_tresca` (F = 0) or
+`socp.solve_coulomb` (successive approximations on the normal force) and returns the
+displacement per node, the contact pressure per contact node and the energy
+J(u) = 1/2 u'Ku - f'u + sum_j F_j g_j w_j |u_tau,j|.
+"""
+import math
+
+import numpy as np
+import scipy.sparse as sp
+
+from .socp import solve_coulomb, solve_tresca
+
+__all__ = ["grid", "shape_q1", "strain_matrix", "stiffness", "hooke", "face_integral",
+           "volume_integral", "plane_faces", "discretise", "solve", "energy", "rigid_modes",
+           "friction_at"]
+
+AXES = {"x": 0, "y": 1, "z": 2}
+GAUSS = np.array([-1.0, 1.0]) / math.sqrt(3.0)      # 2-point Gauss rule, weights 1
+
+
+# ---------------------------------------------------------------------------- mesh
+def _box(scene):
+    mesh = scene["mesh"]
+    if mesh.get("type", "box") != "box":
+        raise NotImplementedError(f"independent reference: box meshes only, got mesh type "
+                                  f"{mesh.get('type')!r}")
+    if "rotate" in mesh:
+        raise NotImplementedError("independent reference: rotated meshes are not supported")
+    lower = np.asarray(mesh["lower"], dtype=float)
+    upper = np.asarray(mesh["upper"], dtype=float)
+    ncell = np.asarray(mesh.get("cells_per_nd", [1, 1, 1]), dtype=int) * int(mesh.get("nd", 1))
+    return lower, upper, ncell
+
+
+def grid(lower, upper, ncell):
+    """Nodes (n,3) of the structured grid, x fastest; cells (nc,8) in local order
+    q = qx + 2 qy + 4 qz (corner (qx, qy, qz) of the cell)."""
+    nx, ny, nz = (int(c) for c in ncell)
+    ax = [np.linspace(lower[d], upper[d], int(ncell[d]) + 1) for d in range(3)]
+    Z, Y, X = np.meshgrid(ax[2], ax[1], ax[0], indexing="ij")       # (z, y, x) nesting
+    xyz = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    node = lambda i, j, k: i + (nx + 1) * (j + (ny + 1) * k)          # noqa: E731
+    k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    i, j, k = i.ravel(), j.ravel(), k.ravel()
+    cells = np.stack([node(i + qx, j + qy, k + qz)
+                      for qz in (0, 1) for qy in (0, 1) for qx in (0, 1)], axis=1)
+    return xyz, cells
+
+
+# ---------------------------------------------------------------------- elements
+def _corners(dim):
+    """Reference corners (2^dim, dim), first coordinate fastest."""
+    c = np.array(np.meshgrid(*([[-1.0, 1.0]] * dim), indexing="ij")).reshape(dim, -1).T
+    return c[:, ::-1].copy()            # meshgrid 'ij' makes the LAST index fastest
+
+
+def shape_q1(points):
+    """Tensor-product (bi/tri)linear shape functions at reference points (g, dim):
+    N (g, 2^dim) and dN/dxi (g, 2^dim, dim)."""
+    points = np.atleast_2d(points)
+    dim = points.shape[1]
+    corners = _corners(dim)                                     # (k, dim)
+    fac = 0.5 * (1.0 + points[:, None, :] * corners[None, :, :])   # (g, k, dim)
+    N = fac.prod(axis=2)
+    dN = np.empty(fac.shape)
+    for d in range(dim):
+        others = np.delete(fac, d, axis=2).prod(axis=2)
+        dN[:, :, d] = 0.5 * corners[None, :, d] * others
+    return N, dN
+
+
+def _gauss(dim):
+    pts = np.array(np.meshgrid(*([GAUSS] * dim), indexing="ij")).reshape(dim, -1).T
+    return pts, np.ones(pts.shape[0])
+
+
+def hooke(young, poisson):
+    """Isotropic elasticity matrix (6,6), Voigt order xx, yy, zz, yz, xz, xy with
+    engineering shear strains."""
+    lam = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson))
+    mu = young / (2.0 * (1.0 + poisson))
+    D = np.zeros((6, 6))
+    D[:3, :3] = lam
+    D[np.arange(3), np.arange(3)] += 2.0 * mu
+    D[np.arange(3, 6), np.arange(3, 6)] = mu
+    return D
+
+
+def _geometry(xyz, cells):
+    """Per cell and Gauss point: dN/dx (nc, g, 8, 3), det J * weight (nc, g), N (g, 8)."""
+    pts, wts = _gauss(3)
+    N, dN = shape_q1(pts)                                       # (g,8), (g,8,3)
+    Xe = xyz[cells]                                             # (nc, 8, 3)
+    J = np.einsum("gqi,cqj->cgji", dN, Xe)                      # J[j,i] = dx_j/dxi_i
+    det = np.linalg.det(J)
+    if np.any(det <= 0):
+        raise ValueError("independent reference: inverted or degenerate cell")
+    Jinv = np.linalg.inv(J)                                     # dxi_i/dx_j
+    dNdx = np.einsum("gqi,cgij->cgqj", dN, Jinv)
+    return dNdx, det * wts[None, :], N
+
+
+def strain_matrix(dNdx):
+    """B (..., 6, 24) from dN/dx (..., 8, 3); strain = B u_e, u_e = [u_0x, u_0y, ...]."""
+    sh = dNdx.shape[:-2]
+    B = np.zeros(sh + (6, 8, 3))
+    dx, dy, dz = dNdx[..., 0], dNdx[..., 1], dNdx[..., 2]
+    B[..., 0, :, 0] = dx
+    B[..., 1, :, 1] = dy
+    B[..., 2, :, 2] = dz
+    B[..., 3, :, 1], B[..., 3, :, 2] = dz, dy          # gamma_yz
+    B[..., 4, :, 0], B[..., 4, :, 2] = dz, dx          # gamma_xz
+    B[..., 5, :, 0], B[..., 5, :, 1] = dy, dx          # gamma_xy
+    return B.reshape(sh + (6, 24))
+
+
+def _cell_dofs(cells):
+    return (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], 24)
+
+
+def stiffness(xyz, cells, young, poisson):
+    """Global stiffness K (3n, 3n) CSR, no boundary conditions."""
+    dNdx, dv, _ = _geometry(xyz, cells)
+    B = strain_matrix(dNdx)                                     # (nc, g, 6, 24)
+    D = hooke(young, poisson)
+    Ke = np.einsum("cgki,kl,cglj,cg->cij", B, D, B, dv)         # (nc, 24, 24)
+    dofs = _cell_dofs(cells)
+    rows = np.repeat(dofs, 24, axis=1).ravel()
+    cols = np.tile(dofs, (1, 24)).ravel()
+    n = 3 * xyz.shape[0]
+    K = sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
+    K.sum_duplicates()
+    return K
+
+
+def volume_integral(xyz, cells, density):
+    """Nodal vector int N_a b dx (n, 3) for a constant vector b (3,)."""
+    _, dv, N = _geometry(xyz, cells)
+    nodal = np.einsum("gq,cg->cq", N, dv)                       # int N_q over the cell
+    out = np.zeros((xyz.shape[0], 3))
+    np.add.at(out, cells.ravel(), nodal.ravel()[:, None] * np.asarray(density, float)[None])
+    return out
+
+
+def plane_faces(xyz, cells, axis, value, tol):
+    """Cell faces (nf, 4) lying in the plane x_axis = value; face corner order
+    (s fastest) over the two other axes in increasing order (a bilinear quad)."""
+    a, b = [d for d in range(3) if d != axis]
+    out = []
+    for side in (0, 1):
+        # local corners q = qx + 2 qy + 4 qz with q_axis = side, ordered (q_a fastest)
+        loc = [sum(((side if d == axis else (p if d == a else r)) << d) for d in range(3))
+               for r in (0, 1) for p in (0, 1)]
+        f = cells[:, loc]
+        on = np.all(np.abs(xyz[f, axis] - value) <= tol, axis=1)
+        out.append(f[on])
+    return np.concatenate(out) if out else np.zeros((0, 4), dtype=int)
+
+
+def face_integral(xyz, faces, n_nodes):
+    """int N_a ds over the given bilinear faces (nf, 4), per node (n_nodes,)."""
+    pts, wts = _gauss(2)
+    N, dN = shape_q1(pts)                                       # (g,4), (g,4,2)
+    Xf = xyz[faces]                                             # (nf, 4, 3)
+    ts = np.einsum("gq,fqi->fgi", dN[:, :, 0], Xf)
+    tt = np.einsum("gq,fqi->fgi", dN[:, :, 1], Xf)
+    da = np.linalg.norm(np.cross(ts, tt), axis=2) * wts[None, :]   # (nf, g)
+    nodal = np.einsum("gq,fg->fq", N, da)
+    out = np.zeros(n_nodes)
+    np.add.at(out, faces.ravel(), nodal.ravel())
+    return out
+
+
+def rigid_modes(xyz):
+    """The six rigid-body motions (3n, 6): translations x, y, z, rotations about x, y, z."""
+    n = xyz.shape[0]
+    R = np.zeros((n, 3, 6))
+    R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
+    x, y, z = xyz.T
+    R[:, 1, 3], R[:, 2, 3] = -z, y
+    R[:, 0, 4], R[:, 2, 4] = z, -x
+    R[:, 0, 5], R[:, 1, 5] = -y, x
+    return R.reshape(3 * n, 6)
+
+
+def friction_at(spec, xyz):
+    """F at points (m,3): a number, or a NumPy expression in x, y, z."""
+    if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        F = np.full(xyz.shape[0], float(spec))
+    else:
+        ns = {k: getattr(np, k) for k in dir(np) if not k.startswith("_")}
+        ns.update(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2])
+        F = np.broadcast_to(np.asarray(eval(str(spec), {"__builtins__": {}}, ns), float),
+                            (xyz.shape[0],)).copy()
+    if not np.all(np.isfinite(F)) or np.any(F < 0):
+        raise ValueError(f"friction {spec!r} must be finite and >= 0 on the contact face")
+    return F
+
+
+# --------------------------------------------------------------------- the scene
+def discretise(scene):
+    """The discrete problem of a box scene: dict with xyz (n,3), cells (nc,8), K (3n,3n)
+    CSR (no BC), f (3n,), dirichlet (clamped dofs), contact (node numbers), w (contact
+    weights), F (friction at the contact nodes), nrm_dofs (m,), tan_dofs (m,2)."""
+    lower, upper, ncell = _box(scene)
+    if int(scene.get("loading", {}).get("steps", 1)) != 1:
+        raise NotImplementedError("independent reference: static problem only (loading.steps 1)")
+    contact = scene.get("contact", {}) or {}
+    if contact.get("gap") is not None:
+        raise NotImplementedError("independent reference: contact.gap is not supported")
+    fd = contact.get("foundation", {}) or {}
+    nrm = np.asarray(fd.get("normal", [0.0, 0.0, 1.0]), dtype=float)
+    pt = np.asarray(fd.get("point", [0.0, 0.0, 0.0]), dtype=float)
+    if not (nrm[0] == 0 and nrm[1] == 0 and nrm[2] > 0) or pt[2] != 0:
+        raise NotImplementedError("independent reference: foundation z <= 0 only "
+                                  "(normal +z through z = 0)")
+    mat = scene["material"]
+    xyz, cells = grid(lower, upper, ncell)
+    n = xyz.shape[0]
+    tol = 1e-10 * float(np.max(upper - lower))
+    K = stiffness(xyz, cells, float(mat["young"]), float(mat["poisson"]))
+    f = np.zeros((n, 3))
+    bf = np.asarray(scene.get("body_force", [0.0, 0.0, 0.0]), dtype=float)
+    if np.any(bf):
+        f += volume_integral(xyz, cells, bf)
+    clamped = np.zeros((n, 3), dtype=bool)
+    contact_nodes = np.zeros(n, dtype=bool)
+    contact_faces = []
+    for name, part in scene["boundary"].items():
+        if "plane" not in part:
+            raise NotImplementedError(f"independent reference: part {name!r}: planes only")
+        if "ramp" in part:
+            raise NotImplementedError(f"independent reference: part {name!r}: ramps "
+                                      f"(load paths) are not supported")
+        axis, value = AXES[part["plane"][0]], float(part["plane"][1])
+        if min(abs(value - lower[axis]), abs(value - upper[axis])) > tol:
+            raise NotImplementedError(f"independent reference: part {name!r}: the plane "
+                                      f"must be a face of the box")
+        on = np.abs(xyz[:, axis] - value) <= tol
+        t = part["type"]
+        if t == "dirichlet":
+            if np.any(np.asarray(part.get("displacement", [0.0, 0.0, 0.0]), float)):
+                raise NotImplementedError(f"independent reference: part {name!r}: nonzero "
+                                          f"prescribed displacement")
+            for c in part.get("components", ["x", "y", "z"]):
+                clamped[on, AXES[c]] = True
+        elif t == "symmetry":
+            clamped[on, axis] = True
+        elif t == "traction":
+            faces = plane_faces(xyz, cells, axis, value, tol)
+            f += face_integral(xyz, faces, n)[:, None] * np.asarray(part["traction"], float)
+        elif t == "contact":
+            if axis != 2 or abs(value) > tol or abs(lower[2]) > tol:
+                raise NotImplementedError(f"independent reference: part {name!r}: contact on "
+                                          f"the plane z = 0 (the box's bottom) only")
+            contact_nodes |= on
+            contact_faces.append(plane_faces(xyz, cells, axis, value, tol))
+        else:
+            raise NotImplementedError(f"independent reference: part type {t!r}")
+    w_all = (face_integral(xyz, np.concatenate(contact_faces), n) if contact_faces
+             else np.zeros(n))
+    active = np.flatnonzero(contact_nodes & ~clamped[:, 2])
+    cxyz = xyz[active]
+    spec = contact.get("friction", 0.0)
+    F = friction_at(spec, cxyz) if active.size else np.zeros(0)
+    return dict(xyz=xyz, cells=cells, K=K, f=f.ravel(), dirichlet=np.flatnonzero(clamped.ravel()),
+                contact=active, contact_xyz=cxyz, w=w_all[active], F=F,
+                nrm_dofs=3 * active + 2, tan_dofs=np.c_[3 * active, 3 * active + 1])
+
+
+def energy(d, u, g):
+    """J(u) = 1/2 u'Ku - f'u + sum_j F_j g_j w_j |u_tau,j|."""
+    ut = np.linalg.norm(u[d["tan_dofs"]], axis=1) if d["contact"].size else np.zeros(0)
+    return 0.5 * u @ (d["K"] @ u) - d["f"] @ u + np.sum(d["F"] * g * d["w"] * ut)
+
+
+def solve(scene, tol=1e-11, g0=None):
+    """Solve a box scene independently of the package.
+
+    Returns dict: xyz (n,3) node coordinates, u (n,3) displacement, contact (m,) the
+    contact nodes' numbers, contact_xyz (m,3) their coordinates,
+    pressure (m,) g_j = R_j / w_j, energy J(u), iterations (fixed-point steps, 0 when
+    frictionless), w, F, and the discrete problem under 'problem'. g0: the fixed point's
+    starting normal force (default 0, the paper's)."""
+    d = discretise(scene)
+    args = (d["K"], d["f"], d["dirichlet"], d["nrm_dofs"], d["tan_dofs"], d["w"])
+    if not np.any(d["F"] > 0):
+        res = solve_tresca(*args, s=np.zeros(d["contact"].size))
+        it = 0
+    else:
+        res = solve_coulomb(*args, F=d["F"], tol=tol, g0=g0)
+        it = res["iterations"]
+    u, g = res["u"], res["pressure"]
+    return dict(xyz=d["xyz"], u=u.reshape(-1, 3), contact=d["contact"],
+                contact_xyz=d["contact_xyz"], pressure=g,
+                energy=energy(d, u, g), iterations=it, w=d["w"], F=d["F"], problem=d)
