@@ -62,17 +62,44 @@ def test_below_the_limit_against_conic_solver(mode):
 
 def test_stick_zone_shrinks_toward_the_limit(comm):
     """Stick at low q (no node slips more than 1e-3 of the elastic shear scale q h / G),
-    more slip as q -> F p, and the same answer on 1 and 2 ranks (canonical order)."""
+    more slip as q -> F p, and the same answer on 1 and 2 ranks (canonical order).
+
+    Full stick at q = 0.2 F p is what the discrete Coulomb problem gives here: a state
+    with u_tau = 0 at every contact node is its solution when the reaction R = A u - b of
+    that state lies inside the cone (|sigma_tau| <= F g, g >= 0) at every node.
+    Pressing alone already asks for |sigma_tau| / g ~ 0.47 at the corners (the bottom
+    holds back the Poisson expansion), the shear q = 0.2 F p adds little, so the ratio
+    stays below F = 0.5 and every node sticks: u_tau is zero to rounding (< 1e-10 max|u|),
+    not merely small. The test checks both halves of that claim: u_tau = 0 and the
+    reaction strictly inside the cone. On 2 ranks each load is also solved on COMM_SELF
+    and the canonical displacements must agree."""
+    from contact import residuals as res
     G = E / (2 * (1 + NU))
     slips, fractions = [], []
     for ratio in (0.2, 0.6, 0.95):
-        s = bottom_slip(solve(sheared(ratio, mode="fast", ssn_rtol=1e-13), comm))
+        sc = sheared(ratio, mode="fast", ssn_rtol=1e-13)
+        pr = solve(copy.deepcopy(sc), comm)
+        s = bottom_slip(pr)
         scale = ratio * F * P / G
         slips.append(s.mean() / scale)
         fractions.append(np.mean(s > 1e-3 * scale))
+        u = gather(pr)[1]
+        if ratio == 0.2:                      # full stick, and the stuck state is Coulomb's
+            assert s.max() < 1e-10 * np.linalg.norm(u, axis=1).max()
+            f = res.contact_fields(pr)
+            g = f["R"][:, 2] / f["w"]
+            sig_t = np.linalg.norm(f["R"][:, :2], axis=1) / f["w"]
+            g_all = np.concatenate(comm.tompi4py().allgather(g))
+            ratio_all = np.concatenate(comm.tompi4py().allgather(sig_t / np.where(g > 0, g, 1)))
+            assert g_all.size == 9 and (g_all > 0.1 * P).all()        # closed everywhere
+            assert ratio_all.max() < 0.98 * F                        # strictly in the cone
+        if comm.getSize() > 1:                # the same answer as one process
+            ser = gather(solve(sc, PETSc.COMM_SELF))[1]
+            assert rel_err(u, ser) < 1e-8
     assert slips[0] < slips[1] < slips[2]
     assert fractions[0] <= fractions[1] <= fractions[2] and fractions[2] > 0
     assert fractions[0] < 1
+    assert fractions[0] == 0.0                # every node sticks at q = 0.2 F p
 
 
 @pytest.mark.parametrize("ratio,steps,where", [(1.2, 1, ""), (1.05, 1, ""),

@@ -1,16 +1,18 @@
 """gmsh meshes (contact.gmshio.read_gmsh and the .geo files in meshes/): hexahedra in
 PETSc's cone order, physical surfaces as face labels, parameters, errors on all ranks."""
+import copy
 import os
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, gather, only_in_parallel, rel_err, solve
 from mpi4py import MPI
 from petsc4py import PETSc
 
 pytest.importorskip("gmsh")
 
 from contact import fem, gmshio, mesh  # noqa: E402
+from contact import scene as scenes  # noqa: E402
 from contact.mesh import HEX_REF, MeshError  # noqa: E402
 
 MESHES = os.path.join(ROOT, "meshes")
@@ -214,3 +216,30 @@ def test_missing_label():
     dm, _, conn, _ = read(BEAM, nd=1)
     with pytest.raises(MeshError, match="no label 'physical:nothing'"):
         mesh.labelled_faces(dm, conn, "physical:nothing")
+
+
+@only_in_parallel
+def test_gmsh_scene_two_ranks_equal_one_rank():
+    """The Hertz scene (hertz_block.geo: graded cells, physical parts, a gap, a prescribed
+    displacement, symmetry planes), made small (nd = 1: 2 core and 2 graded cells per
+    direction, 125 nodes) and frictional (F = 0.3: the fixed point too), solved on
+    COMM_WORLD and on COMM_SELF: the same canonical nodes and displacement. The Newton
+    steps' CG is converged to rounding (-ssn_ksp_rtol 1e-14, the fast mode's is 1e-3) so
+    that the two partitions differ by rounding, not by an inexact linear solve."""
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "hertz.yaml"))
+    assert sc["mesh"]["type"] == "gmsh" and sc["solver"]["mode"] == "fast"
+    sc["mesh"]["nd"] = 1
+    sc["mesh"]["parameters"].update(m=2, L=3.0, H=3.0)
+    sc["contact"]["friction"] = 0.3
+    sc = scenes.validate(sc)
+    PETSc.Options().setValue("ssn_ksp_rtol", "1e-14")
+    par = solve(copy.deepcopy(sc), PETSc.COMM_WORLD)
+    ser = solve(sc, PETSc.COMM_SELF)
+    assert par.converged and ser.converged and par.mode == ser.mode == "coulomb"
+    assert min(W.allgather(par.conn.shape[0])) > 0             # both ranks hold cells
+    xyz_p, u_p = gather(par)[:2]
+    xyz_s, u_s = gather(ser)[:2]
+    assert xyz_p.shape == (5 ** 3, 3) and np.array_equal(xyz_p, xyz_s)
+    assert np.abs(u_s).max() > 0.01                            # pushed down by 0.04
+    assert rel_err(u_p, u_s) < 1e-10
+    assert par.normal_force() == pytest.approx(ser.normal_force(), rel=1e-10)
