@@ -10,7 +10,7 @@ The foundation is the half-space {(X - p) . n <= 0} behind the plane through p w
 normal n (the paper: p = 0, n = e_z). The body's outward normal on the contact is
 nu = -n, so u_nu = u . nu = -u . n. For n = +e_k (k = x, y or z), u . n = u_k and x_tau =
 the two other components; for any other n the contact nodes' dofs are those of the
-basis (t1, t2, n) of contact/frame.py (`frame`), so u . n = u~_3 and x_tau = (u~_1, u~_2).
+basis (t1, t2, n) of contact/frame.py (built by the discretisation from `nodes`), so u . n = u~_3 and x_tau = (u~_1, u~_2).
 Non-penetration: u_nu,j <= gap_j, where gap_j = (X_j - p) . n (the distance to the plane)
 or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)).
 In contact space, component 2 is the normal one and 0, 1 are the tangential ones.
@@ -23,7 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import fem
-from .frame import ContactFrame, axis_of, basis
+from .frame import axis_of, basis
 
 FORWARD = PETSc.ScatterMode.FORWARD
 REVERSE = PETSc.ScatterMode.REVERSE
@@ -56,8 +56,9 @@ class ContactSet:
         comm = dm.getComm()
         self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
         axis = axis_of(self.normal)
-        #: None for n = +e_k; else the basis change of contact/frame.py (t1, t2, n dofs)
-        self.frame = None
+        #: n off the axes: the contact nodes' dofs are those of the basis (t1, t2, n) of
+        #: contact/frame.py, which the discretisation builds from `nodes`
+        self.off_axes = axis is None
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
         comps = [c for c in range(3) if c != self.axis] + [self.axis]
         nv = coords.shape[0]
@@ -101,15 +102,8 @@ class ContactSet:
         if errs:
             raise ValueError(errs[0])
         nodes = np.flatnonzero(active)
-        if axis is None:
-            self.frame = ContactFrame(dm, Q, nodes, nv)
-            cl = np.asarray(clamped_rows, dtype=PETSc.IntType)
-            rot = np.isin(cl // 3, rstart // 3 + nodes)
-            #: the clamped rows in the frame's basis: a clamped u_c of a rotated node is
-            #: its dof t1 = e_c (checked above)
-            self.clamped_rows = np.where(rot, cl - cl % 3, cl).astype(PETSc.IntType)
-        else:
-            self.clamped_rows = np.asarray(clamped_rows, dtype=PETSc.IntType)
+        #: the owned contact nodes (block rows of the displacement Vec, local numbering)
+        self.nodes = nodes
         self.local_size = nodes.size
         self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in comps]
         self.coordinates = owned_xyz[nodes]                      # (m_local, 3), for output

@@ -15,6 +15,7 @@ from petsc4py import PETSc
 
 from . import fem, mesh
 from .contactset import ContactSet
+from .frame import ContactFrame, basis
 from .scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)
@@ -122,11 +123,15 @@ class Discretisation:
             con = sc.get("contact", {})
             fd = con.get("foundation", {})
             template = dm.createGlobalVec()
+            rstart = template.getOwnershipRange()[0]
             self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                                  con.get("friction", 0.0), template, normal=self.normal,
                                  point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"))
             template.destroy()
-            self.frame, self.clamped = self.cs.frame, self.cs.clamped_rows
+            if self.cs.off_axes:                 # n off the axes: contact dofs (t1, t2, n)
+                self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes,
+                                          coords.shape[0])
+                self.clamped = self.frame.clamped_rows(self.clamped, rstart)
         mat = sc["material"]
         self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"],
                                         frame=self.frame)

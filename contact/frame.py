@@ -70,6 +70,13 @@ class ContactFrame:
         dm.restoreLocalVec(lvec)
         g.destroy()
 
+    def clamped_rows(self, rows, rstart):
+        """The clamped rows `rows` (global, x, y, z) in this basis: a clamped u_c of a
+        rotated node is its dof t1 = e_c (contactset.py checks that t1 is that axis)."""
+        cl = np.asarray(rows, dtype=PETSc.IntType)
+        rot = np.isin(cl // 3, rstart // 3 + self.nodes)
+        return np.where(rot, cl - cl % 3, cl).astype(PETSc.IntType)
+
     def _apply(self, vec, M):
         a = vec.getArray(readonly=True).copy()
         a3 = a.reshape(-1, 3)

@@ -60,7 +60,7 @@ def test_turned_beam_gives_the_turned_answer(comm, mode, tol):
     a = solve(copy.deepcopy(sc), comm)
     sc_t, R = scenes.turned(sc, AXIS, DEGREES)
     b = solve(sc_t, comm)
-    assert a.cs.frame is None and b.cs.frame is not None
+    assert a.frame is None and b.frame is not None
     xa, ua = gather(a)[:2]
     xb, ub = gather(b)[:2]
     i = matched(xa, xb, R)
@@ -101,7 +101,7 @@ def test_block_on_an_incline_holds_below_the_friction_angle(comm):
     # A u - b on the body: friction points up the slope, -(f - (f . n) n)
     n = np.asarray(pr.normal)
     up = -(np.array([0, 0, -1.0]) + n[2] * n)
-    Q = pr.cs.frame.Q
+    Q = pr.frame.Q
     assert np.allclose(Rt @ Q[:2] / np.linalg.norm(Rt), up / np.linalg.norm(up), atol=1e-4)
 
 
