@@ -11,79 +11,32 @@ Parts (--part, default all):
           memory-traffic floor (bytes of one MatMult plus the vector passes, divided by the
           bandwidth PETSc's VecWAXPY reaches on this machine).
   ranks   fast mode on 1 and 2 ranks, Nd = 20 and 40: solve time, speed-up, memory.
-Each case runs `python -m contact ...` in runs/out/bench/<case>; a case whose summary.json
-exists is reused (--force reruns). Times are wall-clock seconds of the solve stage.
+Each case runs `python -m contact ...` in runs/out/bench/<case> (--out-dir); a case whose
+summary.json exists is reused (--force reruns). Times are wall-clock seconds of the solve
+stage. --smoke: every part at Nd = 2 (floor: 300 iterations, a small bandwidth array),
+recorded in --out-dir (tests/test_examples.py).
 """
 import argparse
-import datetime
-import json
 import os
-import platform
 import re
-import subprocess
-import sys
 import time
 
-import h5py
-import numpy as np
+from contact.validation import harness
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-OUT = os.path.join(ROOT, "runs", "out", "bench")
-PY = sys.executable
-PAPER = {10: (17663, 5, 8, 130.22), 20: (19548, 10, 8, 530.85),
-         40: (27917, 14, 8, 4570.73), 80: (45145, 17, 8, 71066.04)}
+ROOT = harness.ROOT
+PAPER = {nd: p[2:] for nd, p in harness.PAPER_TABLE1.items()}   # APG 1st, Uzawa, FP, time
 FAST = ["-solver_mode", "fast"]
 REF_TOL = ["-uzawa_rtol", "1e-12", "-fp_rtol", "1e-12", "-ssn_rtol", "1e-13"]
 REFS = {"ref-gamg": ["-uzawa_inner", "ssn", "-ssn_ksp_rtol", "1e-12"] + REF_TOL,
         "ref-cholesky": ["-uzawa_inner", "ssn", "-ssn_ksp_type", "preonly",
                          "-ssn_pc_type", "cholesky"] + REF_TOL}
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
-def run(case, nd, opts, np_=1, force=False, log_view=False, timeout=3600):
-    """Run one case (cached); returns (summary dict, directory, stdout)."""
-    d = os.path.join(OUT, case)
-    js = os.path.join(d, "summary.json")
-    logf = os.path.join(d, "stdout.txt")
-    if force or not os.path.exists(js):
-        cmd = [PY, "-m", "contact", "-nd", str(nd), "-output_dir", d] + opts
-        if log_view:
-            cmd.append("-log_view")
-        if np_ > 1:
-            cmd = ["mpirun", "-n", str(np_), "--oversubscribe"] + cmd
-        print("running:", " ".join(cmd[cmd.index("-m") - 1:] if np_ == 1 else cmd),
-              flush=True)
-        t0 = time.perf_counter()
-        p = subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
-                           timeout=timeout)
-        if p.returncode != 0:
-            raise RuntimeError(f"{case} failed:\n{p.stderr[-2000:]}")
-        with open(logf, "w") as f:
-            f.write(p.stdout)
-        print(f"  done in {time.perf_counter() - t0:.1f} s", flush=True)
-    with open(js) as f:
-        s = json.load(f)
-    out = open(logf).read() if os.path.exists(logf) else ""
-    return s, d, out
-
-
-def fields(d):
-    with h5py.File(os.path.join(d, "solution.h5"), "r") as f:
-        u = f["/fields/displacement"][...]
-        p = f["/contact/pressure"][...] if "/contact/pressure" in f else None
-    return u, p
-
-
-def errors(d, ref_d, s, ref_s):
-    """Relative errors against a reference: displacement (L2 over nodes), contact
-    pressure (max norm over contact nodes), energy."""
-    u, p = fields(d)
-    ur, pr = fields(ref_d)
-    e = {"u": float(np.linalg.norm(u - ur) / np.linalg.norm(ur)),
-         "energy": abs(s["energy"] - ref_s["energy"]) / abs(ref_s["energy"])}
-    e["p"] = float(np.abs(p - pr).max() / np.abs(pr).max()) if p is not None else float("nan")
-    return e
+def run(args, case, nd, opts, np_=1, force=None, log_view=False, timeout=3600):
+    """Run one case (cached, see contact/validation/harness.py); a failure stops the bench."""
+    return harness.run_case(os.path.join(args.out_dir, case),
+                            ["-nd", nd] + opts + (["-log_view"] if log_view else []), np_,
+                            force=args.force if force is None else force, timeout=timeout)
 
 
 def mem(s):
@@ -98,7 +51,7 @@ def part_table1(args, lines):
               "MiB | paper: APG 1st / Uzawa / FP | paper time, s | speed-up vs paper |",
               "|" + "---|" * 14]
     for nd in args.nd:
-        s, _, _ = run(f"fast-nd{nd}", nd, FAST, force=args.force)
+        s = run(args, f"fast-nd{nd}", nd, FAST).summary
         it, t = s["iterations"], s["time_s"]
         pa = PAPER.get(nd, ("–",) * 4)
         sp = f"{pa[3] / t['solve']:.0f}x" if nd in PAPER else "–"
@@ -110,10 +63,9 @@ def part_table1(args, lines):
 
 
 def part_equal(args, lines):
-    nd = 10
-    refs = {k: run(f"{k}-nd{nd}", nd, v, force=args.force)[:2] for k, v in REFS.items()}
-    (ra, da), (rb, db) = refs.values()
-    agree = errors(db, da, rb, ra)
+    nd = args.equal_nd
+    ref, ref2 = (run(args, f"{k}-nd{nd}", nd, v) for k, v in REFS.items())
+    agree = harness.rel_errors(ref2, ref)
     cases = {"faithful": [], "fast": FAST,
              "fast, tight (-uzawa_rtol 1e-8 -fp_rtol 1e-8)": FAST + ["-uzawa_rtol", "1e-8",
                                                                     "-fp_rtol", "1e-8"]}
@@ -127,10 +79,10 @@ def part_equal(args, lines):
               "|---|---|---|---|---|---|---|"]
     res = {}
     for name, opts in cases.items():
-        case = "faithful-nd10" if name == "faithful" else \
-            ("fast-nd10" if opts == FAST else "fast-tight-nd10")
-        s, d, _ = run(case, nd, opts, force=args.force and name != "faithful", timeout=3600)
-        e = errors(d, da, s, ra)
+        case = (f"faithful-nd{nd}" if name == "faithful" else
+                (f"fast-nd{nd}" if opts == FAST else f"fast-tight-nd{nd}"))
+        r = run(args, case, nd, opts, force=args.force and name != "faithful")
+        s, e = r.summary, harness.rel_errors(r, ref)
         res[name] = (s["time_s"]["solve"], e)
         it = s["iterations"]
         lines.append(f"| {name} | `{' '.join(opts) or '(none)'}` | {s['time_s']['solve']:.2f} "
@@ -145,12 +97,11 @@ def part_equal(args, lines):
     lines.append("")
 
 
-def bandwidth():
-    """Bytes/s that VecWAXPY reaches on 2e7 doubles (3 arrays: 2 read, 1 written)."""
+def bandwidth(n=20_000_000):
+    """Bytes/s that VecWAXPY reaches on n doubles (3 arrays: 2 read, 1 written)."""
     import petsc4py
     petsc4py.init([])
     from petsc4py import PETSc
-    n = 20_000_000
     x = PETSc.Vec().createSeq(n)
     x.set(1.0)
     y, w = x.duplicate(), x.duplicate()
@@ -170,15 +121,17 @@ def _event(out, name):
 
 
 def part_floor(args, lines):
-    bw = bandwidth()
+    n_bw = 1_000_000 if args.smoke else 20_000_000
+    bw = bandwidth(n_bw)
     lines += ["## One APG iteration against its memory-traffic floor", "",
-              f"VecWAXPY bandwidth on this machine (1 core, 2e7 doubles): {bw / 1e9:.1f} GB/s.",
+              f"VecWAXPY bandwidth on this machine (1 core, {n_bw:.0e} doubles): "
+              f"{bw / 1e9:.1f} GB/s.",
               "", "| Nd | variant | n (dofs) | nnz(A) | APG its | APG time, s | per iteration, us | "
               "floor, us | ratio |", "|---|---|---|---|---|---|---|---|---|"]
-    for nd, name, opts, vecpasses in _floor_cases():
+    for nd, name, opts, vecpasses in _floor_cases(args.smoke):
         case = f"floor-nd{nd}-" + ("faithful" if "gradient" not in opts else "restart")
-        s, d, out = run(case, nd, opts, force=args.force, log_view=True)
-        calls, tsec = _event(out, "APG iterations")
+        r = run(args, case, nd, opts, log_view=True)
+        s, tsec = r.summary, _event(r.stdout, "APG iterations")[1]
         its = s["iterations"]["apg_total"]
         n, nnz = s["dofs"], s["nonzeros"]
         # MatMult (AIJ): values 8 + column index 4 bytes per nonzero, row pointers, x read,
@@ -196,13 +149,15 @@ def part_floor(args, lines):
               "vectors) was served partly from cache.", ""]
 
 
-def _floor_cases():
-    few = ["-apg_max_it", "3000", "-apg_error_if_not_converged", "false",
+def _floor_cases(smoke=False):
+    its = 300 if smoke else 3000
+    few = ["-apg_max_it", str(its), "-apg_error_if_not_converged", "false",
            "-uzawa_max_it", "1", "-uzawa_error_if_not_converged", "false",
            "-fp_max_it", "1", "-fp_error_if_not_converged", "false"]
-    for nd in (10, 20):
-        yield nd, "faithful, first 3000 iterations", few, 14
-    yield 10, "-apg_restart gradient (whole solve)", ["-apg_restart", "gradient"], 19
+    for nd in ((2,) if smoke else (10, 20)):
+        yield nd, f"faithful, first {its} iterations", few, 14
+    if not smoke:
+        yield 10, "-apg_restart gradient (whole solve)", ["-apg_restart", "gradient"], 19
 
 
 def part_ranks(args, lines):
@@ -213,7 +168,7 @@ def part_ranks(args, lines):
         t1 = None
         for np_ in (1, 2):
             case = f"fast-nd{nd}" if np_ == 1 else f"fast-nd{nd}-np2"
-            s, _, _ = run(case, nd, FAST, np_=np_, force=args.force)
+            s = run(args, case, nd, FAST, np_=np_).summary
             t = s["time_s"]["solve"]
             t1 = t if np_ == 1 else t1
             lines.append(f"| {nd} | {np_} | {t:.2f} | {t1 / t:.2f} | {s['time_s']['setup']:.2f} "
@@ -222,20 +177,32 @@ def part_ranks(args, lines):
     lines.append("")
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
                                                        "ranks"])
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
+    ap.add_argument("--equal-nd", type=int, default=10, help="size of the 'equal' part")
     ap.add_argument("--ranks-nd", type=int, nargs="+", default=[20, 40])
     ap.add_argument("--force", action="store_true", help="rerun cached cases")
-    ap.add_argument("--record", default=os.path.join(ROOT, "runs", "results", "bench.md"))
-    args = ap.parse_args()
-    os.makedirs(OUT, exist_ok=True)
-    lines = ["# Benchmarks (make bench)", "",
-             f"Date: {datetime.date.today()}. Machine: {platform.node()}, "
-             f"{os.cpu_count()} cores (shared), CPU only; PETSc from Debian; "
-             f"command: `python runs/bench.py --part {args.part}`.", ""]
+    ap.add_argument("--smoke", action="store_true",
+                    help="every part at Nd = 2 (tests); needs --out-dir, records there")
+    ap.add_argument("--out-dir", default=None,
+                    help="directory of the cases (default runs/out/bench)")
+    ap.add_argument("--record", default=None,
+                    help="markdown (default runs/results/bench.md; --smoke: OUT_DIR/bench.md)")
+    args = ap.parse_args(argv)
+    if args.smoke:
+        if args.out_dir is None:
+            ap.error("--smoke needs --out-dir (it must not write into runs/)")
+        args.nd, args.equal_nd, args.ranks_nd = [2], 2, [2]
+    args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
+    args.record = args.record or (os.path.join(args.out_dir, "bench.md") if args.smoke else
+                                  os.path.join(ROOT, "runs", "results", "bench.md"))
+    os.makedirs(args.out_dir, exist_ok=True)
+    lines = (["# Benchmarks (make bench)", ""]
+             + harness.provenance_lines(1, make="bench", argv=argv)
+             + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
              "ranks": part_ranks}
     for name, fn in parts.items():
@@ -243,14 +210,10 @@ def main():
             fn(args, lines)
     text = "\n".join(lines) + "\n"
     print(text)
-    if args.part == "all":
-        with open(args.record, "w") as f:
-            f.write(text)
-    else:
-        path = args.record.replace(".md", f"-{args.part}.md")
-        with open(path, "w") as f:
-            f.write(text)
-        print("recorded in", path)
+    path = args.record if args.part == "all" else args.record.replace(".md", f"-{args.part}.md")
+    with open(path, "w") as f:
+        f.write(text)
+    print("recorded in", path)
 
 
 if __name__ == "__main__":

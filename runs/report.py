@@ -4,6 +4,7 @@
     .venv/bin/python runs/report.py --nd 8 16       # other sizes
     .venv/bin/python runs/report.py --quick         # smoke run: tiny sizes, 2 tolerances
     .venv/bin/python runs/report.py --force         # re-run cases whose results exist
+    .venv/bin/python runs/report.py --smoke --out-dir DIR   # tests: Nd = 2, 1 tolerance
 
 What it does, for each size Nd:
   1. two reference solutions at tolerance 1e-12 from two different variants (SSN with an
@@ -18,28 +19,22 @@ What it does, for each size Nd:
      default): energy, max |u|, displacement at the corner (3, 1, 1), and the difference
      to the finest mesh at the nodes the meshes share.
 Each case is a subprocess `python -m contact -nd N -output_dir runs/out/report/<case> ...`
-(runs/out is git-ignored scratch); a case whose summary.json exists is not run again
-unless --force (a case that timed out is remembered too). Outputs:
-runs/results/report/error_vs_time_nd<N>.png, runs/results/report/mesh_convergence.png,
-runs/results/report/data.json and runs/results/report.md.
+(runs/out is git-ignored scratch; --out-dir) run by contact/validation/harness.py; a case
+whose summary.json exists is not run again unless --force (a case that timed out is
+remembered too). Outputs (--record): runs/results/report.md and, beside it,
+runs/results/report/error_vs_time_nd<N>.png, report/mesh_convergence.png, report/data.json.
 """
 import argparse
 import json
 import os
-import resource
-import shutil
-import subprocess
 import sys
 import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCRATCH = os.path.join(ROOT, "runs", "out", "report")
-RESULTS = os.path.join(ROOT, "runs", "results", "report")
-MD = os.path.join(ROOT, "runs", "results", "report.md")
-PYTHON = os.path.join(ROOT, ".venv", "bin", "python")
-DATE = "2026-11-21"
+from contact.validation import harness
+
+ROOT = harness.ROOT
 CORNER = (3.0, 1.0, 1.0)
 FLOOR = 1e-16                     # errors are clipped to this for the log plots
 LOAD = os.getloadavg()            # the machine's load when the script started
@@ -113,83 +108,42 @@ MESH_OPTS = ["-solver_mode", "fast", "-uzawa_rtol", "1e-10", "-fp_rtol", "1e-10"
 
 
 # -- running cases -----------------------------------------------------------------------
-def run_case(name, nd, opts, timeout, force, log):
+def run_case(name, nd, opts, timeout, args, log):
     """Run (or reuse) one case; returns a dict with status ok | timeout | failed and, when
-    ok, the summary and the arrays of solution.h5."""
-    d = os.path.join(SCRATCH, name)
-    summ, marker = os.path.join(d, "summary.json"), os.path.join(d, "timeout.json")
-    cmd = [PYTHON, "-m", "contact", "-nd", str(nd), "-output_dir", d] + list(opts)
-    case = {"name": name, "nd": nd, "opts": list(opts), "dir": d}
-    if force and os.path.isdir(d):
-        shutil.rmtree(d)
-    if os.path.exists(summ):
-        log(f"{name}: cached")
-    elif os.path.exists(marker) and json.load(open(marker))["timeout"] >= timeout:
-        log(f"{name}: cached timeout (> {json.load(open(marker))['timeout']} s)")
-        return dict(case, status="timeout", timeout=timeout, wall=timeout)
-    else:
-        os.makedirs(d, exist_ok=True)
-        log(f"{name}: running (timeout {timeout} s) ...", end="")
-        t0, r0 = time.perf_counter(), cpu_children()
-        try:
-            p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
-        except subprocess.TimeoutExpired:
-            with open(marker, "w") as f:
-                json.dump({"timeout": timeout, "cmd": cmd, "wall_s": timeout}, f)
-            log(f" timed out after {timeout} s", cont=True)
-            return dict(case, status="timeout", timeout=timeout, wall=timeout)
-        wall, cpu = time.perf_counter() - t0, cpu_children() - r0
-        with open(os.path.join(d, "run.log"), "w") as f:
-            f.write(p.stdout + p.stderr)
-        with open(os.path.join(d, "wall.json"), "w") as f:
-            json.dump({"wall_s": wall, "cpu_s": cpu, "cmd": cmd}, f)
-        if p.returncode != 0 or not os.path.exists(summ):
-            err = (p.stderr.strip().splitlines() or ["(no message)"])[-1]
-            log(f" FAILED (exit {p.returncode}): {err}", cont=True)
-            return dict(case, status="failed", error=err, wall=wall)
-        log(f" {wall:.1f} s", cont=True)
-    w = os.path.join(d, "wall.json")
-    w = json.load(open(w)) if os.path.exists(w) else {}
-    return dict(case, status="ok", wall=w.get("wall_s"), cpu=w.get("cpu_s"), **load(d))
-
-
-def cpu_children():
-    """User + system CPU seconds of the finished child processes so far."""
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def load(d):
-    """summary.json and the fields of solution.h5 of a results directory."""
-    import h5py
-    with open(os.path.join(d, "summary.json")) as f:
-        s = json.load(f)
-    with h5py.File(os.path.join(d, "solution.h5"), "r") as h:
-        xyz = h["/mesh/coordinates"][...]
-        u = h["/fields/displacement"][...]
-        p = h["/contact/pressure"][...]
-    return {"summary": s, "xyz": xyz, "u": u, "p": p}
+    ok, the harness's Run, its summary and the arrays of solution.h5."""
+    r = harness.run_case(os.path.join(args.out_dir, name), ["-nd", nd] + list(opts),
+                         timeout=timeout, force=args.force, check=False, log=log)
+    case = {"name": name, "nd": nd, "opts": list(opts), "dir": r.dir, "status": r.status,
+            "wall": r.wall, "cpu": r.cpu}
+    legacy = os.path.join(r.dir, "wall.json")            # times of a case from before run.json
+    if r.wall is None and os.path.exists(legacy):
+        with open(legacy) as f:
+            w = json.load(f)
+        case.update(wall=w.get("wall_s"), cpu=w.get("cpu_s"))
+    if r.status == "timeout":
+        return dict(case, timeout=timeout, wall=timeout)
+    if r.status == "failed":
+        return dict(case, error=r.error)
+    sol = r.solution
+    return dict(case, run=r, summary=r.summary, xyz=sol["xyz"], u=sol["u"], p=sol["p"])
 
 
 def errors(c, ref):
-    """Relative errors of a case against a reference of the same mesh."""
-    du = np.linalg.norm(c["u"] - ref["u"]) / np.linalg.norm(ref["u"])
-    dp = np.abs(c["p"] - ref["p"]).max() / np.abs(ref["p"]).max()
-    J, Jr = c["summary"]["energy"], ref["summary"]["energy"]
-    return {"u": float(du), "p": float(dp), "J": float(abs(J - Jr) / abs(Jr))}
+    """Relative errors of a case against a reference of the same mesh (harness.rel_errors;
+    J: the energy)."""
+    e = harness.rel_errors(c["run"], ref["run"])
+    return {"u": e["u"], "p": e["p"], "J": e["energy"]}
 
 
-def option_works(nd, option, value, log):
+def option_works(nd, option, value, args, log):
     """True if `option value` runs and `option <nonsense>` is refused (i.e. the option is
     really read, not silently ignored)."""
-    d = os.path.join(SCRATCH, "probe")
-    base = [PYTHON, "-m", "contact", "-nd", str(nd), "-output_dir", d]
-    good = subprocess.run(base + [option, value], cwd=ROOT, capture_output=True, text=True)
-    bad = subprocess.run(base + [option, "no_such_value"], cwd=ROOT, capture_output=True,
-                         text=True)
-    ok = good.returncode == 0 and bad.returncode != 0
-    why = ("" if ok else (good.stderr.strip().splitlines() or ["option ignored"])[-1]
-           if good.returncode else "option is ignored (a nonsense value is accepted)")
+    d = os.path.join(args.out_dir, "probe")
+    good, bad = (harness.run_case(d, ["-nd", nd, option, v], force=True, check=False,
+                                  log=lambda m: None) for v in (value, "no_such_value"))
+    ok = good.ok and bad.status == "failed"
+    why = "" if ok else (good.error if not good.ok else
+                         "option is ignored (a nonsense value is accepted)")
     log(f"probe {option} {value}: {'works' if ok else 'not available: ' + why}")
     return ok, why
 
@@ -198,13 +152,12 @@ def option_works(nd, option, value, log):
 def references(nd, args, log):
     """The reference runs of one size; the second is APG + restart unless --ref2 says
     otherwise or it does not fit its timeout (then SSN with MUMPS)."""
-    refs = [run_case(f"nd{nd}-{REF_SSN[0]}", nd, REF_SSN[2], args.ref_timeout, args.force,
-                     log)]
+    refs = [run_case(f"nd{nd}-{REF_SSN[0]}", nd, REF_SSN[2], args.ref_timeout, args, log)]
     second = REF_APG if nd <= args.apg_ref_max_nd else REF_MUMPS
-    c = run_case(f"nd{nd}-{second[0]}", nd, second[2], args.ref_timeout, args.force, log)
+    c = run_case(f"nd{nd}-{second[0]}", nd, second[2], args.ref_timeout, args, log)
     if c["status"] != "ok" and second is REF_APG:
         second = REF_MUMPS
-        c = run_case(f"nd{nd}-{second[0]}", nd, second[2], args.ref_timeout, args.force, log)
+        c = run_case(f"nd{nd}-{second[0]}", nd, second[2], args.ref_timeout, args, log)
     refs.append(c)
     for r, spec in zip(refs, (REF_SSN, second)):
         r["label"] = spec[1]
@@ -224,15 +177,15 @@ def sweep(nd, small, args, log, unavailable):
         if v["sizes"] == "small" and not small:
             out[key] = [{"status": "skipped", "why": "run only at the smallest size (too slow)"}]
             continue
-        tols = v["quick"] if args.quick else (v["tols"] if small else v.get("tols_large",
-                                                                            v["tols"]))
+        tols = (v["quick"][:1] if args.smoke else v["quick"] if args.quick else
+                (v["tols"] if small else v.get("tols_large", v["tols"])))
         cases, stop = [], None
         for tol in tols:
             if stop:
                 cases.append({"tol": tol, "status": "skipped", "why": stop})
                 continue
             c = run_case(f"nd{nd}-{key}-{t(tol)}", nd, v["base"] + v["knob"](tol),
-                         v["timeout"], args.force, log)
+                         v["timeout"], args, log)
             c["tol"] = tol
             cases.append(c)
             if c["status"] == "timeout":
@@ -243,7 +196,7 @@ def sweep(nd, small, args, log, unavailable):
 
 def mesh_convergence(nds, args, log):
     """Fast-mode runs at tight tolerance on each Nd, compared with the finest mesh."""
-    runs = [run_case(f"mesh-nd{n}", n, MESH_OPTS, args.mesh_timeout, args.force, log)
+    runs = [run_case(f"mesh-nd{n}", n, MESH_OPTS, args.mesh_timeout, args, log)
             for n in nds]
     ok = [r for r in runs if r["status"] == "ok"]
     if not ok:
@@ -438,44 +391,39 @@ def reading(nd, data):
 
 
 def write_md(sizes, mc, args, times, unavailable):
-    L = [f"# Error against run time of the solver variants, and mesh convergence",
-         "",
-         f"Date: {DATE}. Machine: the project's shared 2-core CPU machine (no GPU), 1 MPI "
-         f"rank, PETSc {first_summary(sizes)['petsc_version']}; other engineers' jobs share "
-         f"the two cores (1-min load average at the start / end of this invocation: "
-         f"{LOAD[0]:.1f} / {os.getloadavg()[0]:.1f}), so times carry noise of tens of percent "
-         f"and more (orders of magnitude between variants are robust, small ratios are "
-         f"not). Scene: the paper's "
-         f"beam (`runs/paper_beam.yaml`, F = 0.3, r = 1e8).",
-         "",
-         "    " + " ".join(["make report  #", ".venv/bin/python", "runs/report.py"]
-                          + sys.argv[1:]),
-         "",
-         f"Script wall time of this invocation: {times[0] / 60:.1f} min (cases already on "
-         f"disk are reused); from scratch (sum of the wall times of all its cases as they "
-         f"ran, start-up included): {times[1] / 60:.1f} min. The defaults (Nd = 6 and 12, "
-         f"mesh study Nd = 2, 4, 8, 16) are chosen to stay under 12 min from scratch on this "
-         f"machine. Each case is `.venv/bin/python -m contact -nd N "
-         f"-output_dir runs/out/report/<case> <options>`.",
-         "",
-         "## Method",
-         "",
-         "- Reference per size: the project's own solution at tolerance 1e-12 from two "
-         "variants (below); errors are measured against the first. Their mutual "
-         "difference is drawn as a dashed line: errors below it are not resolved.",
-         "- Errors: displacement = ||u - u_ref||_2 / ||u_ref||_2 over all nodal vectors "
-         "(canonical node order of solution.h5); pressure = max_j |p_j - p_ref,j| / "
-         "max_j |p_ref,j| over the contact nodes, p = `/contact/pressure` (the Uzawa "
-         "multiplier l = g = -sigma_nu); energy = |J - J_ref| / |J_ref| with J of "
-         "summary.json. Energy is near-stationary at the solution, so its error is roughly "
-         "the square of the others until round-off (~1e-15) is reached.",
-         "- Time = `time_s.solve` (set-up and output excluded), a wall-clock time; the "
-         "plots use it. Process CPU = user + system CPU seconds of the whole `python -m "
-         "contact` process (start-up ~1 s, set-up and output included)" + cpu_note(sizes)
-         + " Iterations: inner total (APG or SSN steps over the whole solve) / Uzawa "
-         "total / fixed-point.",
-         "- Variants and their tolerance knob (tol = the number in the tables):",
-         ""]
+    L = ["# Error against run time of the solver variants, and mesh convergence", ""]
+    L += harness.provenance_lines(1, make="report", argv=args.argv)
+    L += [f"- Load: other jobs share the cores (1-min load average at the start / end of "
+          f"this invocation: {LOAD[0]:.1f} / {os.getloadavg()[0]:.1f}), so times carry noise "
+          f"of tens of percent and more (orders of magnitude between variants are robust, "
+          f"small ratios are not). CPU only. Scene: the paper's beam "
+          f"(`runs/paper_beam.yaml`, F = 0.3, r = 1e8).",
+          "",
+          f"Script wall time of this invocation: {times[0] / 60:.1f} min (cases already on "
+          f"disk are reused); from scratch (sum of the wall times of all its cases as they "
+          f"ran, start-up included): {times[1] / 60:.1f} min. The defaults (Nd = 6 and 12, "
+          f"mesh study Nd = 2, 4, 8, 16) are chosen to stay under 12 min from scratch on this "
+          f"machine. Each case is `.venv/bin/python -m contact -nd N "
+          f"-output_dir runs/out/report/<case> <options>`.",
+          "",
+          "## Method",
+          "",
+          "- Reference per size: the project's own solution at tolerance 1e-12 from two "
+          "variants (below); errors are measured against the first. Their mutual "
+          "difference is drawn as a dashed line: errors below it are not resolved.",
+          "- Errors: displacement = ||u - u_ref||_2 / ||u_ref||_2 over all nodal vectors "
+          "(canonical node order of solution.h5); pressure = max_j |p_j - p_ref,j| / "
+          "max_j |p_ref,j| over the contact nodes, p = `/contact/pressure` (the Uzawa "
+          "multiplier l = g = -sigma_nu); energy = |J - J_ref| / |J_ref| with J of "
+          "summary.json. Energy is near-stationary at the solution, so its error is roughly "
+          "the square of the others until round-off (~1e-15) is reached.",
+          "- Time = `time_s.solve` (set-up and output excluded), a wall-clock time; the "
+          "plots use it. Process CPU = user + system CPU seconds of the whole `python -m "
+          "contact` process (start-up ~1 s, set-up and output included)" + cpu_note(sizes)
+          + " Iterations: inner total (APG or SSN steps over the whole solve) / Uzawa "
+          "total / fixed-point.",
+          "- Variants and their tolerance knob (tol = the number in the tables):",
+          ""]
     for k, v in VARIANTS.items():
         flag = f" — **skipped: {unavailable[k]}**" if k in unavailable else ""
         L.append(f"  - **{k}** ({v['label']}): `{' '.join(v['base']) or '(no options)'} "
@@ -521,8 +469,8 @@ def write_md(sizes, mc, args, times, unavailable):
         L += ["", "Reading (computed from the table):", ""] + reading(nd, d)
     L += mesh_md(mc)
     L += ["", "## Notes", ""] + notes(sizes, mc)
-    os.makedirs(os.path.dirname(MD), exist_ok=True)
-    with open(MD, "w") as f:
+    os.makedirs(os.path.dirname(args.record), exist_ok=True)
+    with open(args.record, "w") as f:
         f.write("\n".join(L) + "\n")
 
 
@@ -660,14 +608,6 @@ def its(s):
     return f"{i['inner_total']} / {i['uzawa_total']} / {i['fixed_point']}"
 
 
-def first_summary(sizes):
-    for d in sizes.values():
-        for r in d["refs"]:
-            if r["status"] == "ok":
-                return r["summary"]
-    return {"petsc_version": "?"}
-
-
 # -- main ----------------------------------------------------------------------------------
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
@@ -678,6 +618,14 @@ def main(argv=None):
                     help="sizes of the mesh study (default 2 4 8 16; --quick: 1 2 4; none: "
                          "skip it)")
     ap.add_argument("--quick", action="store_true", help="smoke run: tiny sizes, 2 tolerances")
+    ap.add_argument("--smoke", action="store_true",
+                    help="smallest run (tests): Nd = 2, one tolerance per variant, mesh study "
+                         "Nd = 1, 2; needs --out-dir, records there")
+    ap.add_argument("--out-dir", default=None,
+                    help="directory of the cases (default runs/out/report)")
+    ap.add_argument("--record", default=None,
+                    help="markdown (default runs/results/report.md; --smoke: OUT_DIR/report.md); "
+                         "plots and data.json go to report/ beside it")
     ap.add_argument("--force", action="store_true", help="re-run cases that exist")
     ap.add_argument("--ref-timeout", type=int, default=300, help="cap of a reference run, s")
     ap.add_argument("--mesh-timeout", type=int, default=200, help="cap of a mesh run, s")
@@ -685,12 +633,19 @@ def main(argv=None):
                     help="largest Nd whose second reference is APG + restart (above: SSN "
                          "with MUMPS)")
     args = ap.parse_args(argv)
-    nds = args.nd or ([2, 3] if args.quick else [6, 12])
-    mesh_nds = args.mesh_nd if args.mesh_nd is not None else ([1, 2, 4] if args.quick
-                                                              else [2, 4, 8, 16])
+    args.argv = sys.argv[1:] if argv is None else list(argv)
+    if args.smoke and args.out_dir is None:
+        ap.error("--smoke needs --out-dir (it must not write into runs/)")
+    args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "report")
+    args.record = args.record or (os.path.join(args.out_dir, "report.md") if args.smoke else
+                                  os.path.join(ROOT, "runs", "results", "report.md"))
+    results = os.path.join(os.path.dirname(args.record), "report")
+    nds = args.nd or ([2] if args.smoke else [2, 3] if args.quick else [6, 12])
+    mesh_nds = args.mesh_nd if args.mesh_nd is not None else (
+        [1, 2] if args.smoke else [1, 2, 4] if args.quick else [2, 4, 8, 16])
     t0 = time.perf_counter()
-    os.makedirs(SCRATCH, exist_ok=True)
-    os.makedirs(RESULTS, exist_ok=True)
+    os.makedirs(args.out_dir, exist_ok=True)
+    os.makedirs(results, exist_ok=True)
 
     def log(msg, end="\n", cont=False):
         stamp = "" if cont else f"[{time.perf_counter() - t0:6.0f} s] "
@@ -701,7 +656,7 @@ def main(argv=None):
     for key, v in VARIANTS.items():
         if "probe" in v:
             ok, why = option_works(1, v["probe"], v["base"][v["base"].index(v["probe"]) + 1],
-                                   log)
+                                   args, log)
             if not ok:
                 unavailable[key] = f"`{v['probe']}` not available ({why})"
     probe_time = time.perf_counter() - probe_time
@@ -723,8 +678,8 @@ def main(argv=None):
                     c["err"] = errors(c, ref)
         sizes[nd] = {"refs": refs, "agreement": agreement, "sweeps": sw,
                      "dofs": ref["summary"]["dofs"]}
-        plot_errors(nd, sizes[nd], os.path.join(RESULTS, f"error_vs_time_nd{nd}.png"))
-        log(f"wrote runs/results/report/error_vs_time_nd{nd}.png")
+        plot_errors(nd, sizes[nd], os.path.join(results, f"error_vs_time_nd{nd}.png"))
+        log(f"wrote {os.path.join(results, f'error_vs_time_nd{nd}.png')}")
 
     mc = {"rows": [], "finest": None}
     if mesh_nds:
@@ -732,22 +687,22 @@ def main(argv=None):
         mc = mesh_convergence(sorted(mesh_nds), args, log)
         if len([r for r in mc["rows"] if r["status"] == "ok"]) >= 2:
             big = max(sizes) if sizes else None
-            plot_mesh(mc, os.path.join(RESULTS, "mesh_convergence.png"),
+            plot_mesh(mc, os.path.join(results, "mesh_convergence.png"),
                       (big, sizes[big]["sweeps"]) if big else None)
-            log("wrote runs/results/report/mesh_convergence.png")
+            log(f"wrote {os.path.join(results, 'mesh_convergence.png')}")
 
     elapsed = time.perf_counter() - t0
     cases = [c for d in sizes.values() for c in d["refs"] + [x for v in d["sweeps"].values()
                                                             for x in v]] + mc.get("runs", [])
     scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time
     write_md(sizes, mc, args, (elapsed, scratch), unavailable)
-    save_data(sizes, mc, elapsed)
-    log(f"wrote {os.path.relpath(MD, ROOT)} (this run {elapsed / 60:.1f} min; from scratch "
+    save_data(sizes, mc, elapsed, os.path.join(results, "data.json"))
+    log(f"wrote {args.record} (this run {elapsed / 60:.1f} min; from scratch "
         f"{scratch / 60:.1f} min)")
     return 0
 
 
-def save_data(sizes, mc, elapsed):
+def save_data(sizes, mc, elapsed, path):
     """The numbers behind the report (no arrays), for later comparison."""
     def strip(c):
         keep = ("name", "status", "tol", "time", "err", "opts", "why", "error", "label")
@@ -758,12 +713,12 @@ def save_data(sizes, mc, elapsed):
             d["converged"] = c["summary"]["converged"]
         return d
     mc = {k: v for k, v in mc.items() if k != "runs"}
-    data = {"date": DATE, "elapsed_s": elapsed, "mesh": mc,
+    data = {"date": harness.provenance()["date"], "elapsed_s": elapsed, "mesh": mc,
             "sizes": {nd: {"dofs": d["dofs"], "agreement": d["agreement"],
                            "refs": [strip(r) for r in d["refs"]],
                            "sweeps": {k: [strip(c) for c in v] for k, v in d["sweeps"].items()}}
                       for nd, d in sizes.items()}}
-    with open(os.path.join(RESULTS, "data.json"), "w") as f:
+    with open(path, "w") as f:
         json.dump(data, f, indent=1)
 
 

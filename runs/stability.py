@@ -16,29 +16,28 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   thin      plates and walls of aspect ratio 1:100
   elements  elongated and flat hexahedra
   fvar      F varying over the contact face (F = 0 on part of it), malformed F
-A row's run directory holds summary.json, solution.h5, stdout.txt, stderr.txt and
-result.json (verdict, error, wall time, options); a row whose result.json exists with the
-same options is reused (--force reruns). Rows that need an option the solver may not have
-(-fp_relaxation) run only if `-help` lists it or a tiny run accepts it (the solver rejects
-unknown options); otherwise they are recorded as skipped.
+A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
+stdout.txt, stderr.txt and run.json (options, outcome, error, wall time); a row whose
+run.json records the same options is reused, failed or not (--force reruns). Rows that
+need an option the solver may not have (-fp_relaxation) run only if `-help` lists it or a
+tiny run accepts it (the solver rejects unknown options); otherwise they are recorded as
+skipped. --smoke: the rows of SMOKE only (one or two per group), into --out-dir (tests).
 """
 import argparse
-import json
 import math
 import os
-import platform
 import re
 import shlex
-import shutil
 import subprocess
 import sys
 import time
 from dataclasses import dataclass
 
-import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from contact.validation import harness
+
+ROOT = harness.ROOT
 OUT = os.path.join(ROOT, "runs", "out", "stability")
 RECORD = os.path.join(ROOT, "runs", "results", "stability.md")
 PY = sys.executable
@@ -224,96 +223,64 @@ def cases_fvar():
 
 
 # -- running -------------------------------------------------------------------------------
-def option_support(cases):
+def option_support(cases, out):
     """{option: how it is known} for the options rows require: listed by -help, or accepted
     by the solver (which rejects unknown options) on a tiny run; None if neither."""
-    p = subprocess.run([PY, "-m", "contact", "-help"], cwd=ROOT, capture_output=True, text=True)
-    out = {}
+    cases = [c for c in cases if c.requires]
+    if not cases:
+        return {}
+    p = subprocess.run([PY, "-m", "contact", "-help"], cwd=ROOT, env=harness.environment(),
+                       capture_output=True, text=True)
+    out_ = {}
     for c in cases:
-        if c.requires and c.requires not in out:
+        if c.requires not in out_:
             if re.search(re.escape(c.requires) + r"\b", p.stdout + p.stderr):
-                out[c.requires] = "listed by -help"
+                out_[c.requires] = "listed by -help"
                 continue
             value = c.opts[c.opts.index(c.requires) + 1]
-            probe = subprocess.run([PY, "-m", "contact", "-nd", "1", "-friction", "0",
-                                    c.requires, value, "-output_dir", os.path.join(OUT, "_probe")],
-                                   cwd=ROOT, capture_output=True, text=True)
+            probe = harness.run_case(os.path.join(out, "_probe"),
+                                     ["-nd", "1", "-friction", "0", c.requires, value],
+                                     force=True, check=False, log=lambda m: None)
             ok = "unknown option" not in probe.stderr
-            out[c.requires] = "accepted by the solver, not listed by -help" if ok else None
-    return out
+            out_[c.requires] = "accepted by the solver, not listed by -help" if ok else None
+    return out_
 
 
 def contact_status(d):
     """Counts of separated / stick / slip contact nodes in solution.h5, or None."""
-    path = os.path.join(d, "solution.h5")
-    if not os.path.exists(path):
+    if not os.path.exists(os.path.join(d, "solution.h5")):
         return None
-    with h5py.File(path, "r") as f:
-        if "/contact/status" not in f:
-            return None
-        return np.bincount(f["/contact/status"][...].astype(int), minlength=3).tolist()
+    st = harness.read_solution(d)["status"]
+    return None if st is None else np.bincount(st.astype(int), minlength=3).tolist()
 
 
-def shell(cmd):
-    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True).stdout.strip()
-
-
-def solver_state():
-    """The solver's commit, '+ uncommitted changes' when contact/ differs from it."""
-    commit = shell(["git", "rev-parse", "--short", "HEAD"])
-    return commit + (" + uncommitted changes" if shell(["git", "status", "--porcelain",
-                                                         "contact"]) else "")
-
-
-def execute(case, timeout):
-    """Run one case in a fresh directory; returns its result record (also saved)."""
-    d = os.path.join(OUT, case.id)
-    shutil.rmtree(d, ignore_errors=True)
-    os.makedirs(d)
-    cmd = [PY, "-m", "contact"] + case.opts + ["-output_dir", d]
-    print(f"[{case.id}] python -m contact {shlex.join(case.opts)}", flush=True)
-    t0 = time.perf_counter()
-    try:
-        p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
-        stdout, stderr, rc = p.stdout, p.stderr, p.returncode
-    except subprocess.TimeoutExpired as e:
-        stdout, stderr, rc = e.stdout or "", e.stderr or "", None
-        stdout, stderr = (s.decode() if isinstance(s, bytes) else s for s in (stdout, stderr))
-    wall = time.perf_counter() - t0
-    for name, text in (("stdout.txt", stdout), ("stderr.txt", stderr)):
-        with open(os.path.join(d, name), "w") as f:
-            f.write(text)
-    summary = None
-    if os.path.exists(os.path.join(d, "summary.json")):
-        with open(os.path.join(d, "summary.json")) as f:
-            summary = json.load(f)
-    errors = [ln for ln in stderr.splitlines() if ln.startswith("contact: error:")]
-    last = [ln for ln in stderr.splitlines() if ln.strip()]
-    if rc is None:
-        verdict, error = "timeout", f"no result after {timeout} s"
-    elif rc == 0:
-        ok = summary is not None and summary.get("converged") is True
+def result(case, run):
+    """The row's record from its harness Run: verdict converged (exit 0 and summary.json
+    says converged) / failed: <the error line> / timeout."""
+    s = run.summary
+    if run.status == "ok":
+        ok = s is not None and s.get("converged") is True
         verdict, error = ("converged", "") if ok else ("failed", "exit 0 but not converged")
     else:
-        verdict = "failed"
-        error = errors[-1] if errors else f"exit {rc}: {last[-1] if last else '(no stderr)'}"
-    res = {"id": case.id, "options": case.opts, "verdict": verdict, "error": error,
-           "traceback": "Traceback (most recent call last)" in stderr, "wall_s": wall,
-           "summary": summary, "status": contact_status(d), "solver": solver_state()}
-    with open(os.path.join(d, "result.json"), "w") as f:
-        json.dump(res, f, indent=1)
-    print(f"    {verdict} {error} ({wall:.1f} s)", flush=True)
-    return res
+        verdict, error = run.status, run.error
+    return {"id": case.id, "options": case.opts, "verdict": verdict, "error": error,
+            "traceback": "Traceback (most recent call last)" in run.stderr, "wall_s": run.wall,
+            "summary": s, "status": contact_status(run.dir),
+            "solver": run.record.get("solver", "not recorded"),
+            "when": os.path.getmtime(os.path.join(run.dir, "run.json")), "cached": run.cached}
 
 
-def cached(case):
-    path = os.path.join(OUT, case.id, "result.json")
-    if os.path.exists(path):
-        with open(path) as f:
-            res = json.load(f)
-        if res["options"] == case.opts:
-            return res
-    return None
+def row_result(case, out, timeout, run, force):
+    """Run the row (run: True), or only look it up in the cache; None if neither. A row
+    directory without run.json (from before the harness) does not say its options: rerun."""
+    d, opts = os.path.join(out, case.id), case.opts
+    known = os.path.exists(os.path.join(d, "run.json"))
+    if run:
+        r = harness.run_case(d, opts, timeout=timeout, force=force or not known, check=False,
+                             reuse_failures=True)
+    else:
+        r = harness.cached(d, opts, timeout=timeout, reuse_failures=True) if known else None
+    return None if r is None else result(case, r)
 
 
 # -- the record ----------------------------------------------------------------------------
@@ -423,6 +390,11 @@ class Rows:
         st = self.results[id_].get("status") if self.results.get(id_) else None
         return "/".join(map(str, st)) if st else "–"
 
+    def max_res(self, ids):
+        """The largest max residual of these rows, '–' if none has a summary."""
+        vals = [max_residual(self.summary(i))[0] for i in ids if self.summary(i)]
+        return f"{max(vals):.0e}" if vals else "–"
+
     def ratio(self, a, b):
         sa, sb = self.summary(a), self.summary(b)
         return f"{sa['max_displacement'] / sb['max_displacement']:.2f}" if sa and sb else "–"
@@ -430,6 +402,11 @@ class Rows:
 
 def listing(values, fmt):
     return ", ".join(fmt(v) for v in values)
+
+
+def span(xs):
+    """'lo-hi' of a list of counts, '–' when there is none (rows not run)."""
+    return f"{min(xs)}-{max(xs)}" if xs else "–"
 
 
 def findings_r(R):
@@ -529,7 +506,7 @@ def findings_friction(R):
 
     return (
         "The fixed point itself converged in every row that got that far (F > 0: "
-        f"{min(fp)}-{max(fp)} iterations without relaxation; also at F = 100 in the loads "
+        f"{span(fp)} iterations without relaxation; also at F = 100 in the loads "
         "group), so the new oscillation/stagnation detection never fired on this scene. The "
         f"failures are in the fast mode's inner solver: {R.failures('F-fast-')}. With the "
         "preset's fixed-point warm start (`-fp_warm_start xl`) SSN fails its line search "
@@ -579,7 +556,7 @@ def findings_loads(R):
         + ". From the limit on no node sticks; the clamp at x = 0 keeps the body from sliding "
         "away, and at t = 100 the load tips the beam and more of the face lifts. All "
         "converge with residuals <= "
-        f"{max(float(R.res(f'load-tang{t}')) for t in ('5', '9', '15', '30', '100')):.0e} "
+        f"{R.max_res(f'load-tang{t}' for t in ('5', '9', '15', '30', '100'))} "
         f"(Uzawa iterations {R.it('load-tang5', 'uzawa_total')} to "
         f"{R.it('load-tang30', 'uzawa_total')}). **Full stick** (F = 100): no slipping node "
         f"({R.status('load-stick')}); fast residual {R.res('load-stick')}, faithful "
@@ -624,7 +601,7 @@ def findings_fvar(R):
           if R.summary(i) and R.summary(i)["iterations"]["fixed_point"]]
     return (
         "F varying over the face, with F = 0 on part of it, converges in every mode "
-        f"(fixed point {min(fp)}-{max(fp)} iterations; F = 0.3 for x > 1.5: status "
+        f"(fixed point {span(fp)} iterations; F = 0.3 for x > 1.5: status "
         f"{R.status('fvar-half')}, no node sticks). F = 0 everywhere written as an "
         f"expression takes the frictionless path ({R.it('fvar-zero', 'fixed_point')} FP "
         f"iterations, max|u| {R.u('fvar-zero')}, as with `-friction 0`). F = 2 on half the face "
@@ -668,56 +645,65 @@ GROUPS = {
              "values that must give a one-line error.", cases_fvar, findings_fvar),
 }
 
-def main():
+#: --smoke: one or two cheap rows per group, two malformed inputs among them
+SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
+         "load-press-300", "thin-plate-nd1", "elem-1x3x3-nd2", "fvar-half", "fvar-negative",
+         "fvar-syntax", "F-fast-relax-0.6")
+
+
+def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", choices=list(GROUPS), action="append",
                     help="run only this group (repeatable); others come from the cache")
     ap.add_argument("--force", action="store_true", help="rerun cached rows")
     ap.add_argument("--timeout", type=float, default=120.0, help="per-run limit, s")
-    ap.add_argument("--record", default=RECORD)
-    args = ap.parse_args()
-    os.makedirs(OUT, exist_ok=True)
+    ap.add_argument("--smoke", action="store_true",
+                    help="only the rows of SMOKE (tests); needs --out-dir, records there")
+    ap.add_argument("--out-dir", default=None, help="row directories (default runs/out/stability)")
+    ap.add_argument("--record", default=None,
+                    help="markdown (default runs/results/stability.md; --smoke: "
+                         "OUT_DIR/stability.md)")
+    args = ap.parse_args(argv)
+    if args.smoke and args.out_dir is None:
+        ap.error("--smoke needs --out-dir (it must not write into runs/)")
+    out = args.out_dir or OUT
+    record = args.record or (os.path.join(out, "stability.md") if args.smoke else RECORD)
+    keep = (lambda c: c.id in SMOKE) if args.smoke else (lambda c: True)
+    groups = {name: (title, intro, [c for c in make() if keep(c)], findings)
+              for name, (title, intro, make, findings) in GROUPS.items()}
+    os.makedirs(out, exist_ok=True)
     t0 = time.perf_counter()
-    support = option_support(c for g in GROUPS.values() for c in g[2]())
-    results, executed = {}, 0
-    for name, (title, intro, make, _) in GROUPS.items():
+    support = option_support((c for g in groups.values() for c in g[2]), out)
+    results = {}
+    for name, (title, intro, cases, _) in groups.items():
         run_group = args.only is None or name in args.only
-        for c in make():
+        for c in cases:
             if c.requires and not support[c.requires]:
                 results[c.id] = {"verdict": "skipped",
                                  "error": f"skipped: the solver does not know `{c.requires}`"}
                 continue
-            res = None if args.force and run_group else cached(c)
-            if res is None and run_group:
-                res = execute(c, args.timeout)
-                executed += 1
-            results[c.id] = res
+            results[c.id] = row_result(c, out, args.timeout, run_group,
+                                       args.force and run_group)
     elapsed = time.perf_counter() - t0
 
     counts = {}
     for res in results.values():
         counts[verdict_of(res)] = counts.get(verdict_of(res), 0) + 1
-    walls = sum(r["wall_s"] for r in results.values() if r and "wall_s" in r)
-    ran = sorted(os.path.getmtime(p) for p in (os.path.join(OUT, i, "result.json")
-                                               for i in results) if os.path.exists(p))
+    done = [r for r in results.values() if r and "wall_s" in r]
+    executed = sum(not r["cached"] for r in done)
+    walls = sum(r["wall_s"] or 0.0 for r in done)
+    ran = sorted(r["when"] for r in done)
     when = " and ".join(time.strftime("%Y-%m-%d %H:%M %Z", time.localtime(t))
                         for t in (ran[0], ran[-1])) if ran else "–"
-    states = sorted({r.get("solver", "not recorded") for r in results.values()
-                     if r and "wall_s" in r})
-    with open("/proc/cpuinfo") as f:
-        cpu = re.search(r"model name\s*:\s*(.*)", f.read())
-    lines = [
-        "# Stability suite (make stability)", "",
-        f"- Date: {shell(['date'])} (report written); the rows ran between {when}.",
-        f"- Machine: {platform.node()}, {cpu.group(1) if cpu else platform.processor()}, "
-        f"{os.cpu_count()} cores shared with other jobs (times are indicative); 1 MPI rank.",
-        "- Command: `make stability` (runs `runs/stability.py $(STABILITY_ARGS)`); this "
-        f"report: `{shlex.join(['runs/stability.py'] + sys.argv[1:])}`, per-run timeout "
-        f"{args.timeout:g} s.",
+    states = sorted({r["solver"] for r in done})
+    lines = ["# Stability suite (make stability)", ""]
+    lines += harness.provenance_lines(1, make="stability", argv=argv)
+    lines += [
+        f"- The rows ran between {when}; per-run timeout {args.timeout:g} s.",
         f"- Solver (commit of the rows' runs): {', '.join(states) or '–'}.",
         f"- Verdicts: {', '.join(f'{v} {n}' for v, n in sorted(counts.items()))} "
         f"({len(results)} rows). Sum of the rows' wall times {walls:.0f} s; this invocation "
-        f"{elapsed:.0f} s ({executed} runs executed, the rest from runs/out/stability/).",
+        f"{elapsed:.0f} s ({executed} runs executed, the rest from {out}).",
         "- Optional options: " + (", ".join(
             f"`{o}` {how or 'unknown to the solver: its rows are skipped'}"
             for o, how in support.items()) or "none") + ".", "",
@@ -732,15 +718,14 @@ def main():
         f"marks a converged row whose max residual exceeds {RESIDUAL_FLAG:g}. The findings "
         "were written from the run recorded here: their numbers are filled in from the rows, "
         "their wording is not re-derived when the solver changes.", ""]
-    for name, (title, intro, make, findings) in GROUPS.items():
-        cases = make()
+    for name, (title, intro, cases, findings) in groups.items():
         gres = {c.id: results[c.id] for c in cases}
         lines += [f"## {title} (`--only {name}`)", "", intro, ""] + table(cases, gres)
         lines += ["", "**Findings.** " + findings(Rows(gres)), ""]
     text = "\n".join(lines) + "\n"
-    with open(args.record, "w") as f:
+    with open(record, "w") as f:
         f.write(text)
-    print(f"recorded in {args.record}; verdicts {counts}; {elapsed:.0f} s")
+    print(f"recorded in {record}; verdicts {counts}; {elapsed:.0f} s")
 
 
 if __name__ == "__main__":

@@ -2,17 +2,20 @@
 
     .venv/bin/python runs/table1.py 5 10 20          # runs each Nd, then prints the table
     .venv/bin/python runs/table1.py --collect DIR... # only tabulate existing summary.json
-Each run: python -m contact -nd N -output_dir runs/out/table1-ndN (the paper's scene and
-tolerances, r = 1e8, faithful mode).
+    .venv/bin/python runs/table1.py --smoke --out-dir /tmp/t1   # Nd = 2 (tests)
+Each run: python -m contact -nd N -fp_monitor -output_dir runs/out/table1-ndN (the paper's
+scene and tolerances, r = 1e8, faithful mode; --out-dir DIR: DIR/table1-ndN), reused when
+its summary.json exists (--force reruns); its console output is in stdout.txt there.
 """
+import argparse
 import json
 import os
-import subprocess
 import sys
 
-PAPER = {10: (11253, 341, 17663, 5, 8, 130.22), 20: (80703, 1281, 19548, 10, 8, 530.85),
-         40: (610203, 4961, 27917, 14, 8, 4570.73), 80: (4743603, 19521, 45145, 17, 8, 71066.04)}
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from contact.validation import harness
+
+PAPER = harness.PAPER_TABLE1          # runs/petsc_gpu.sh measure imports it from here
+ROOT = harness.ROOT
 
 
 def row(s):
@@ -30,16 +33,25 @@ HEADER = ("| Nd | n_p | n_d | APG its (1st Uzawa) | Uzawa its (mean) | FP its | 
           "| energy J(u) | max residual |\n|" + "---|" * 14)
 
 
-def main(argv):
-    if argv[:1] == ["--collect"]:
-        dirs = argv[1:]
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("nd", nargs="*", type=int, help="sizes to run (default 5 10)")
+    ap.add_argument("--collect", nargs="+", metavar="DIR",
+                    help="only tabulate the summary.json of these directories")
+    ap.add_argument("--out-dir", default=os.path.join(ROOT, "runs", "out"),
+                    help="where the runs go (DIR/table1-ndN)")
+    ap.add_argument("--smoke", action="store_true", help="Nd = 2 only (tests)")
+    ap.add_argument("--force", action="store_true", help="rerun existing runs")
+    args = ap.parse_args(argv)
+    if args.collect:
+        dirs = args.collect
     else:
-        dirs = []
-        for nd in argv or ["5", "10"]:
-            out = os.path.join(ROOT, "runs", "out", f"table1-nd{nd}")
-            subprocess.run([sys.executable, "-m", "contact", "-nd", nd, "-output_dir", out,
-                            "-fp_monitor"], check=True, cwd=ROOT)
-            dirs.append(out)
+        nds = [2] if args.smoke else (args.nd or [5, 10])
+        dirs = [harness.run_case(os.path.join(args.out_dir, f"table1-nd{nd}"),
+                                 ["-nd", nd, "-fp_monitor"], force=args.force,
+                                 log=lambda m: print(m, file=sys.stderr)).dir
+                for nd in nds]
+    print("\n".join(harness.provenance_lines(1, argv=argv)) + "\n")
     print(HEADER)
     for d in dirs:
         with open(os.path.join(d, "summary.json")) as f:

@@ -8,17 +8,15 @@
    mesh convergence over nd; a force-indentation curve from load increments.
 2. Coulomb friction, incremental (Spence's problem): the stick-zone radius c / a after
    monotonic loading in increments, for two Poisson ratios and two friction
-   coefficients, beside the one-step static answer; against the half-space
-   boundary-element reference of contact/validation/halfspace_bem.py where it exists.
+   coefficients and the case with a published value (nu = 0, F = 0.2986: c/a = 0.5),
+   beside the one-step static answer; against the half-space boundary-element reference
+   of contact/validation/halfspace_bem.py (--bem) and the published value.
 
-Usage: python runs/validate.py [--quick] [--nds 2,4,6] (entry point: initialises PETSc).
+Usage: python runs/validate.py [--quick | --smoke --out DIR/validation.md] [--nds 2,4,6]
+(entry point: initialises PETSc). The scene and its analysis: contact/validation/hertz.py.
 """
 import argparse
-import copy
-import datetime
 import os
-import platform
-import subprocess
 import sys
 import time
 
@@ -31,86 +29,22 @@ from petsc4py import PETSc  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-from contact import residuals as res, scene as scenes  # noqa: E402
-from contact.validation import theory as th  # noqa: E402
 from contact.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
+from contact.validation import harness, theory as th  # noqa: E402
+from contact.validation.hertz import (R_SPHERE, analyse, approach_correction,  # noqa: E402
+                                      hertz_scene)
 
-SCENE = os.path.join(HERE, "scenes", "hertz.yaml")
 OUT = os.path.join(HERE, "results")
-R_SPHERE = 10.0
-
-
-def hertz_scene(nd, nu=0.3, friction=0.0, steps=1, d=0.04):
-    sc = scenes.load(SCENE)
-    sc["mesh"]["nd"] = nd
-    h = sc["mesh"]["parameters"]["b"] / (2 * nd)
-    sc["mesh"]["parameters"]["r"] = growth_ratio(h, 8.0 - 1.0, sc["mesh"]["parameters"]["m"])
-    sc["material"]["poisson"] = nu
-    sc["contact"]["friction"] = friction
-    sc["loading"] = {"steps": steps}
-    sc["boundary"]["top"]["displacement"] = [0.0, 0.0, -d]
-    return scenes.validate(sc)
-
-
-def growth_ratio(h, length, m):
-    """r with h (r^m - 1)/(r - 1) = length: the outer cells continue the core's size h."""
-    lo, hi = 1.0 + 1e-9, 3.0
-    for _ in range(100):
-        r = 0.5 * (lo + hi)
-        if h * (r ** m - 1) / (r - 1) > length:
-            hi = r
-        else:
-            lo = r
-    return 0.5 * (lo + hi)
-
-
-def contact_data(pr):
-    """On every rank: contact node radius, pressure l, weight w, |du_tau| of the last
-    increment (or of u for one step), |friction traction| / (F p)."""
-    comm = pr.comm.tompi4py()
-    x = getattr(pr, "last_increment", None) or pr.x
-    f = res.contact_fields(pr, x)
-    xyz = pr.cs.coordinates
-    loc = np.c_[np.hypot(xyz[:, 0], xyz[:, 1]), f["l"], f["w"],
-                np.linalg.norm(f["u"][:, :2], axis=1),
-                np.linalg.norm(f["R"][:, :2], axis=1) / f["w"]]
-    return np.concatenate(comm.allgather(loc))
-
-
-def analyse(pr, nu, F=0.0, E=1.0):
-    data = contact_data(pr)
-    r, p, w, slip, q = data.T
-    P = 4.0 * float(np.sum(p * w))                       # quarter model
-    on = p > 0
-    a_fit, p0_fit = th.fit_hertz_profile(r[on], p[on])
-    out = {"P": P, "a_fit": a_fit, "p0_fit": p0_fit, "p_max": float(p.max()),
-           "a_area": float(np.sqrt(4.0 / np.pi * np.sum(w[on]))),
-           "a_hertz": th.hertz_contact_radius(P, R_SPHERE, E, nu),
-           "p0_hertz": th.hertz_peak_pressure(P, R_SPHERE, E, nu),
-           "nodes_in_contact": int(on.sum()), "r": r, "p": p}
-    if F > 0:
-        smax = max(slip[on].max(initial=0.0), 1e-300)
-        stick = on & (slip <= 1e-6 * smax)
-        out["c_area"] = float(np.sqrt(4.0 / np.pi * np.sum(w[stick])))
-        out["c_over_a"] = out["c_area"] / out["a_area"]
-        out["c_max_node"] = float(r[stick].max(initial=0.0))
-        out["stick_nodes"] = int(stick.sum())
-        out["status"] = np.where(on, np.where(stick, 1, 2), 0)
-    return out
+#: (nu, F) of the stick-zone study; (0, 0.2986) is the case with a published c/a (Spence
+#: 1975 via Kalker 1990: 0.5, contact/validation/theory.py)
+SPENCE_CASES = [(0.3, 0.2), (0.3, 0.5), (0.0, 0.2), (0.0, 0.5), (0.0, 0.2986)]
 
 
 def solve(sc):
     t0 = time.perf_counter()
     pr = ContactProblem(sc, PETSc.COMM_WORLD).solve()
     return pr, time.perf_counter() - t0
-
-
-def approach_correction(P, nu, E=1.0, H=8.0):
-    """The half-space moves by w(H) = P (1 + nu)(3 - 2 nu) / (2 pi E H) on the axis at
-    depth H (Boussinesq), away from the sphere; our block is clamped there, so the sphere
-    approach of the equivalent half-space is delta = d + w(H) (first order in a / H)."""
-    return P * (1 + nu) * (3 - 2 * nu) / (2 * np.pi * E * H)
 
 
 def frictionless_study(nds, d=0.04, nu=0.3):
@@ -164,19 +98,25 @@ def spence_study(nd, steps, cases, d=0.04):
     return rows
 
 
-def bem_reference(cases):
-    """c / a from the half-space BEM of contact/validation/halfspace_bem.py, if it is there."""
-    try:
-        from contact.validation import halfspace_bem as bem
-    except ImportError:
-        return {}
+def bem_reference(cases, n=40, steps=80):
+    """c / a from the half-space BEM of contact/validation/halfspace_bem.py (grid n x n,
+    `steps` increments)."""
+    from contact.validation import halfspace_bem as bem
     out = {}
     for nu, F in cases:
         try:
-            out[(nu, F)] = bem.stick_ratio(nu, F)[0]
+            out[(nu, F)] = bem.stick_ratio(nu, F, n=n, steps=steps)[0]
         except Exception as e:                          # report, do not hide
             out[(nu, F)] = f"failed: {type(e).__name__}: {e}"
     return out
+
+
+def published(nu, F):
+    """Spence's published c/a (contact/validation/theory.py), or None."""
+    try:
+        return th.spence_stick_ratio(nu, F)
+    except th.SpenceDataUnavailable:
+        return None
 
 
 def plots(rows, curve, spence, outdir):
@@ -263,23 +203,14 @@ def _hertz_section(rows):
 
 
 def write_report(path, args, rows, curve, curve_t, spence, bem, total):
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, cwd=HERE).stdout.strip()
-    L = [f"# Validation against closed-form contact solutions",
-         "",
-         f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
-         f"{datetime.date.today()}, commit {commit}, PETSc "
-         + "%d.%d.%d" % PETSc.Sys.getVersion() + f", {PETSc.COMM_WORLD.getSize()} rank(s).",
-         f"Command: `python runs/validate.py {' '.join(sys.argv[1:])}` "
-         f"(`make validate`), {total:.0f} s in all.",
-         "",
-         "Scene `runs/scenes/hertz.yaml`: quarter block 8 x 8 x 8 (gmsh "
-         "`meshes/hertz_block.geo`: uniform core 1 x 1 x 1 of (2 nd)^3 cells, graded "
-         "outwards), E = 1, gap (x^2 + y^2)/(2R) with R = 10 to the rigid plane z = 0, "
-         "top clamped and pushed down by d = 0.04, symmetry on x = 0 and y = 0, "
-         "`-solver_mode fast`. P = 4 x the sum of l_j w_j over the quarter.",
-         "",
-         ""]
+    L = ["# Validation against closed-form contact solutions", ""]
+    L += harness.provenance_lines(PETSc.COMM_WORLD.getSize(), make="validate")
+    L += [f"- Time: {total:.0f} s in all.", "",
+          "Scene `runs/scenes/hertz.yaml`: quarter block 8 x 8 x 8 (gmsh "
+          "`meshes/hertz_block.geo`: uniform core 1 x 1 x 1 of (2 nd)^3 cells, graded "
+          "outwards), E = 1, gap (x^2 + y^2)/(2R) with R = 10 to the rigid plane z = 0, "
+          "top clamped and pushed down by d = 0.04, symmetry on x = 0 and y = 0, "
+          "`-solver_mode fast`. P = 4 x the sum of l_j w_j over the quarter.", "", ""]
     if rows:
         L += _hertz_section(rows)
     if isinstance(curve, str):
@@ -304,12 +235,15 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
               "resolution of about h/a.",
               "",
               "Published reference: Spence, D.A., *The Hertz contact problem with finite "
-              "friction*, J. Elasticity 5 (1975) 297-319 (also Johnson, *Contact "
-              "Mechanics*, 1985, sec. 5.4). Its c/a values could not be obtained in this "
-              "environment (no copy in the stored material; no network), so the column "
-              "'Spence' is empty and the 5% target is NOT checked against it. The "
-              "independent reference is a half-space boundary-element solution of the "
-              "same incremental problem (contact/validation/halfspace_bem.py) where available.",
+              "friction*, J. Elasticity 5 (1975) 297-319, as tabulated by Kalker, "
+              "*Three-Dimensional Elastic Bodies in Rolling Contact* (1990), sec. 5.3.1, and "
+              "the CONTACT user guide ('Spence compression'): c/a = 0.5 for nu = 0, F = "
+              "0.2986 (beta/F = 1.6745), the only published value at hand "
+              "(contact/validation/theory.py); the column 'Spence' shows it where it "
+              "applies and '-' elsewhere. The independent reference for every case is a "
+              "half-space boundary-element solution of the same incremental problem "
+              f"(contact/validation/halfspace_bem.py, grid n = {args.bem_n}, "
+              f"{args.bem_steps} increments) where it was run (`--bem`).",
               "",
               "| nu | F | beta/F | c/a incremental | c/a one-step static | c/a BEM | "
               "Spence | a (area) | stick nodes | max residual | time incr., s |",
@@ -319,12 +253,14 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
             inc, st = row["incremental"], row["static"]
             b = bem.get((row["nu"], row["F"]), "-")
             b = f"{b:.3f}" if isinstance(b, float) else b
+            pub = published(row["nu"], row["F"])
+            pub = "-" if pub is None else f"{pub:.3f}"
             ca = lambda x: "failed" if isinstance(x, str) else f"{x['c_over_a']:.3f}"
             fails += [f"nu = {row['nu']}, F = {row['F']}, {k}: {x}"
                       for k, x in (("incremental", inc), ("static", st)) if isinstance(x, str)]
             ok = not isinstance(inc, str)
             L.append(f"| {row['nu']} | {row['F']} | {row['beta_over_F']:.3f} | "
-                     f"{ca(inc)} | {ca(st)} | {b} | - | "
+                     f"{ca(inc)} | {ca(st)} | {b} | {pub} | "
                      f"{inc['a_area'] if ok else float('nan'):.4f} | "
                      f"{inc['stick_nodes'] if ok else '-'} | "
                      f"{row.get('incremental_residual', float('nan')):.1e} | "
@@ -344,23 +280,39 @@ def main():
     ap.add_argument("--spence-nd", type=int, default=6)
     ap.add_argument("--spence-steps", type=int, default=8)
     ap.add_argument("--quick", action="store_true", help="small meshes (a smoke run)")
+    ap.add_argument("--smoke", action="store_true",
+                    help="smallest run (tests/test_examples.py): Hertz at nd = 2, a 2-step "
+                         "curve, only the published Spence case at nd = 2, a coarse BEM; "
+                         "writes beside --out, which it then requires")
     ap.add_argument("--spence-only", action="store_true",
                     help="only the frictional stick-zone study (use another --out)")
     ap.add_argument("--bem", action="store_true",
                     help="also run the half-space BEM reference (contact/validation/halfspace_bem.py)")
-    ap.add_argument("--out", default=os.path.join(OUT, "validation.md"))
+    ap.add_argument("--bem-n", type=int, default=40, help="BEM grid n x n")
+    ap.add_argument("--bem-steps", type=int, default=80, help="BEM indentation increments")
+    ap.add_argument("--out", default=None,
+                    help="markdown file (default runs/results/validation.md); plots go to "
+                         "validation/ beside it")
     args = ap.parse_args()
+    if args.smoke and args.out is None:
+        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
+    args.out = args.out or os.path.join(OUT, "validation.md")
+    cases = SPENCE_CASES
     if args.quick:
         args.nds, args.curve_nd, args.spence_nd, args.spence_steps = "2,3", 2, 3, 3
+    if args.smoke:
+        args.nds, args.curve_nd, args.curve_steps = "2", 2, 2
+        args.spence_nd, args.spence_steps, args.bem_n, args.bem_steps = 2, 3, 20, 10
+        cases = [c for c in SPENCE_CASES if published(*c) is not None]
     t0 = time.perf_counter()
     rows, curve, curve_t = [], [], 0
     if not args.spence_only:
         rows = frictionless_study([int(n) for n in args.nds.split(",")])
         if args.curve_steps:
             curve, curve_t = curve_study(args.curve_nd, args.curve_steps)
-    cases = [(0.3, 0.2), (0.3, 0.5), (0.0, 0.2), (0.0, 0.5)]
     spence = spence_study(args.spence_nd, args.spence_steps, cases)
-    bem = bem_reference(cases) if args.bem and PETSc.COMM_WORLD.getRank() == 0 else {}
+    bem = (bem_reference(cases, args.bem_n, args.bem_steps)
+           if args.bem and PETSc.COMM_WORLD.getRank() == 0 else {})
     if PETSc.COMM_WORLD.getRank() == 0:
         plots(rows, curve, spence, os.path.join(os.path.dirname(args.out), "validation"))
         write_report(args.out, args, rows, curve, curve_t, spence, bem,

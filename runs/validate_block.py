@@ -16,11 +16,7 @@ tolerance; 0 at a slipping node).
 Usage: python runs/validate_block.py [--nd 8] [--steps 8] (entry point: initialises PETSc).
 """
 import argparse
-import copy
-import datetime
 import os
-import platform
-import subprocess
 import sys
 import time
 
@@ -35,10 +31,12 @@ from contact import residuals as res, scene as scenes  # noqa: E402
 from contact.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
+from contact.validation import harness  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENE = os.path.join(HERE, "scenes", "block_shear.yaml")
 RATIOS = (0.1, 0.3, 0.5, 0.7, 0.8, 0.9, 0.95, 0.99, 1.01, 1.2)
+SMOKE_RATIOS = (0.5, 1.2)              # --smoke: one that holds, one beyond the limit
 
 
 def block_scene(ratio, nd, steps):
@@ -132,11 +130,22 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nd", type=int, default=8)
     ap.add_argument("--steps", type=int, default=8)
-    ap.add_argument("--out", default=os.path.join(HERE, "results", "validation_block.md"))
+    ap.add_argument("--smoke", action="store_true",
+                    help="smallest run (tests/test_examples.py): nd 2, 2 increments, q/(F p) "
+                         "= 0.5 and 1.2; needs --out")
+    ap.add_argument("--out", default=None,
+                    help="markdown file (default runs/results/validation_block.md); the plot "
+                         "goes to validation/ beside it")
     args = ap.parse_args()
+    if args.smoke and args.out is None:
+        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
+    args.out = args.out or os.path.join(HERE, "results", "validation_block.md")
+    ratios = RATIOS
+    if args.smoke:
+        args.nd, args.steps, ratios = 2, 2, SMOKE_RATIOS
     t0 = time.perf_counter()
     rows = []
-    for ratio in RATIOS:
+    for ratio in ratios:
         row = {"ratio": ratio, "static": measure(ratio, args.nd, 1),
                "incremental": measure(ratio, args.nd, args.steps)}
         rows.append(row)
@@ -149,31 +158,26 @@ def main():
     outdir = os.path.join(os.path.dirname(args.out), "validation")
     os.makedirs(outdir, exist_ok=True)
     plot(rows, os.path.join(outdir, "block_shear.png"))
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, cwd=HERE).stdout.strip()
     sc, F, p = block_scene(0.5, args.nd, 1)
-    L = ["# Validation: a block held by friction, sheared below and above the limit", "",
-         f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
-         f"{datetime.date.today()}, commit {commit}, PETSc "
-         + "%d.%d.%d" % PETSc.Sys.getVersion() + f", {PETSc.COMM_WORLD.getSize()} rank(s).",
-         f"Command: `python runs/validate_block.py {' '.join(sys.argv[1:])}` "
-         f"(`make validate`), {time.perf_counter() - t0:.0f} s in all.", "",
-         f"Scene `runs/scenes/block_shear.yaml`: unit block, {args.nd}^3 cells, E = "
-         f"{sc['material']['young']:g}, nu = {sc['material']['poisson']:g}, on the rigid "
-         f"plane z = 0 with F = {F:g}, no clamped part (the translations x, y and the "
-         f"rotation about z are held by friction alone), top traction (q, 0, -p), p = {p:g}, "
-         f"`-solver_mode fast`. Statics of a rigid block: it stays iff q <= F p = {F * p:g}. "
-         f"Columns per load path: the outcome; the stick fraction (area of the contact "
-         f"nodes whose tangential displacement, in the last increment, is below 1e-6 "
-         f"s_ref, s_ref = F p H / G, the block's elastic shear at the limit); the area-mean total slip / s_ref; 'cone': max(|R_tau| - "
-         f"F R_nu) / max(F R_nu) over the contact nodes (Coulomb's cone: <= 0 up to the "
-         f"solver's tolerance, 0 at a slipping node); fixed-point "
-         f"iterations (summed over increments); the largest residual of "
-         f"contact/residuals.py; time. Incremental: press over t in [0, 1/4], then shear "
-         f"over [1/4, 1], {args.steps} increments.", "",
-         "| q/(F p) | static | stick | slip | cone | FP | residual | s | press, then shear "
-         "| stick | slip | cone | FP | residual | s |",
-         "|---:|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
+    L = ["# Validation: a block held by friction, sheared below and above the limit", ""]
+    L += harness.provenance_lines(PETSc.COMM_WORLD.getSize(), make="validate")
+    L += [f"- Time: {time.perf_counter() - t0:.0f} s in all.", "",
+          f"Scene `runs/scenes/block_shear.yaml`: unit block, {args.nd}^3 cells, E = "
+          f"{sc['material']['young']:g}, nu = {sc['material']['poisson']:g}, on the rigid "
+          f"plane z = 0 with F = {F:g}, no clamped part (the translations x, y and the "
+          f"rotation about z are held by friction alone), top traction (q, 0, -p), p = {p:g}, "
+          f"`-solver_mode fast`. Statics of a rigid block: it stays iff q <= F p = {F * p:g}. "
+          f"Columns per load path: the outcome; the stick fraction (area of the contact "
+          f"nodes whose tangential displacement, in the last increment, is below 1e-6 "
+          f"s_ref, s_ref = F p H / G, the block's elastic shear at the limit); the area-mean total slip / s_ref; 'cone': max(|R_tau| - "
+          f"F R_nu) / max(F R_nu) over the contact nodes (Coulomb's cone: <= 0 up to the "
+          f"solver's tolerance, 0 at a slipping node); fixed-point "
+          f"iterations (summed over increments); the largest residual of "
+          f"contact/residuals.py; time. Incremental: press over t in [0, 1/4], then shear "
+          f"over [1/4, 1], {args.steps} increments.", "",
+          "| q/(F p) | static | stick | slip | cone | FP | residual | s | press, then shear "
+          "| stick | slip | cone | FP | residual | s |",
+          "|---:|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         L.append(f"| {r['ratio']} | " + " | ".join(cell(r["static"]) + cell(r["incremental"]))
                  + " |")

@@ -15,10 +15,7 @@ Usage: python runs/validate_incline.py [--nd 8] [--beam-nd 8] (entry point).
 """
 import argparse
 import copy
-import datetime
 import os
-import platform
-import subprocess
 import sys
 import time
 
@@ -30,14 +27,16 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contact import output, residuals as res, scene as scenes  # noqa: E402
-from contact.frame import rotation  # noqa: E402
+from contact.frame import basis, rotation  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
+from contact.validation import harness  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENE = os.path.join(HERE, "scenes", "block_incline.yaml")
 PAPER = os.path.join(HERE, "paper_beam.yaml")
 ANGLES = (5.0, 10.0, 15.0, 20.0, 25.0, 26.0, 27.0, 30.0, 35.0)
+SMOKE_ANGLES = (10.0, 35.0)            # --smoke: one that holds, one that slides
 
 
 def incline_scene(theta, nd):
@@ -58,8 +57,8 @@ def measure_incline(theta, nd):
     t = time.perf_counter() - t0
     comm = pr.comm.tompi4py()
     f = res.contact_fields(pr, pr.x)
-    Rt = comm.allreduce(f["R"][:, :2].sum(axis=0)) @ pr.cs.frame.Q[:2]    # in x, y, z
     n = np.asarray(pr.normal)
+    Rt = comm.allreduce(f["R"][:, :2].sum(axis=0)) @ basis(n)[:2]       # (t1, t2) -> x, y, z
     up = -(np.array([0.0, 0.0, -1.0]) + n[2] * n)                      # -(f - (f.n) n)
     ang = np.degrees(np.arccos(np.clip(Rt @ up / np.linalg.norm(Rt) / np.linalg.norm(up),
                                        -1, 1)))
@@ -127,43 +126,49 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nd", type=int, default=8)
     ap.add_argument("--beam-nd", type=int, default=8)
-    ap.add_argument("--out", default=os.path.join(HERE, "results", "validation_incline.md"))
+    ap.add_argument("--smoke", action="store_true",
+                    help="smallest run (tests/test_examples.py): nd 2, theta = 10 and 35 deg, "
+                         "beam Nd 1 (faithful) and 2 (fast); needs --out")
+    ap.add_argument("--out", default=None,
+                    help="markdown file (default runs/results/validation_incline.md); the "
+                         "plot goes to validation/ beside it")
     args = ap.parse_args()
+    if args.smoke and args.out is None:
+        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
+    args.out = args.out or os.path.join(HERE, "results", "validation_incline.md")
+    angles = ANGLES
+    if args.smoke:
+        args.nd, args.beam_nd, angles = 2, 2, SMOKE_ANGLES
     t0 = time.perf_counter()
     rows = []
-    for theta in ANGLES:
+    for theta in angles:
         rows.append((theta, measure_incline(theta, args.nd)))
         PETSc.Sys.Print(f"theta = {theta}: {rows[-1][1]['outcome']}")
-    beams = [measure_beam(2, "faithful"), measure_beam(args.beam_nd, "fast")]
+    beams = [measure_beam(1 if args.smoke else 2, "faithful"), measure_beam(args.beam_nd, "fast")]
     if PETSc.COMM_WORLD.getRank() != 0:
         return
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, cwd=HERE).stdout.strip()
     F = scenes.load(SCENE)["contact"]["friction"]
     outdir = os.path.join(os.path.dirname(args.out), "validation")
     os.makedirs(outdir, exist_ok=True)
     plot(rows, F, os.path.join(outdir, "incline.png"))
-    L = ["# Validation: foundations off the coordinate axes", "",
-         f"Machine: {platform.node()} ({os.cpu_count()} cores, shared), "
-         f"{datetime.date.today()}, commit {commit}, PETSc "
-         + "%d.%d.%d" % PETSc.Sys.getVersion() + f", {PETSc.COMM_WORLD.getSize()} rank(s).",
-         f"Command: `python runs/validate_incline.py {' '.join(sys.argv[1:])}` "
-         f"(`make validate`), {time.perf_counter() - t0:.0f} s in all.", "",
-         "## A block on an inclined plane", "",
-         f"Scene `runs/scenes/block_incline.yaml`: unit block ({args.nd}^3 cells, E = 1000, "
-         f"nu = 0.3), weight rho g V = 1 along -z, no clamped part, on a rigid plane turned "
-         f"by theta about x (mesh.rotate; the foundation's normal (0, -sin, cos) is off the "
-         f"axes, so the contact frame of contact/frame.py is used), F = {F:g}, "
-         f"`-solver_mode fast`. Statics of a rigid block: it stays iff tan(theta) <= F, "
-         f"i.e. theta <= {np.degrees(np.arctan(F)):.2f} deg, with N = cos(theta) and a "
-         f"friction resultant sin(theta) up the slope. Columns: N / cos(theta) and "
-         f"|R_tau| / sin(theta) (R = A u - b on the contact nodes: the foundation's force on "
-         f"the body), the angle between R_tau and the up-slope direction, the fraction of "
-         f"contact nodes that stick, fixed-point iterations, the largest residual of "
-         f"contact/residuals.py, time.", "",
-         "| theta, deg | tan(theta) | statics | run | N / cos | R_tau / sin | angle, deg "
-         "| stick | FP | residual | s |",
-         "|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    L = ["# Validation: foundations off the coordinate axes", ""]
+    L += harness.provenance_lines(PETSc.COMM_WORLD.getSize(), make="validate")
+    L += [f"- Time: {time.perf_counter() - t0:.0f} s in all.", "",
+          "## A block on an inclined plane", "",
+          f"Scene `runs/scenes/block_incline.yaml`: unit block ({args.nd}^3 cells, E = 1000, "
+          f"nu = 0.3), weight rho g V = 1 along -z, no clamped part, on a rigid plane turned "
+          f"by theta about x (mesh.rotate; the foundation's normal (0, -sin, cos) is off the "
+          f"axes, so the contact frame of contact/frame.py is used), F = {F:g}, "
+          f"`-solver_mode fast`. Statics of a rigid block: it stays iff tan(theta) <= F, "
+          f"i.e. theta <= {np.degrees(np.arctan(F)):.2f} deg, with N = cos(theta) and a "
+          f"friction resultant sin(theta) up the slope. Columns: N / cos(theta) and "
+          f"|R_tau| / sin(theta) (R = A u - b on the contact nodes: the foundation's force on "
+          f"the body), the angle between R_tau and the up-slope direction, the fraction of "
+          f"contact nodes that stick, fixed-point iterations, the largest residual of "
+          f"contact/residuals.py, time.", "",
+          "| theta, deg | tan(theta) | statics | run | N / cos | R_tau / sin | angle, deg "
+          "| stick | FP | residual | s |",
+          "|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for theta, r in rows:
         holds = np.tan(np.radians(theta)) <= F
         pre = f"| {theta:g} | {np.tan(np.radians(theta)):.3f} | {'stays' if holds else 'slides'} "

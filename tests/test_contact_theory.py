@@ -195,21 +195,33 @@ def test_spence_exact_limits():
         ct.spence_stick_ratio(0.6, 0.3)
 
 
-def test_spence_without_published_values_refuses_to_answer():
-    """No published (beta/f, c/a) pair was found; an interior value must not be made up."""
-    if ct.SPENCE_PUBLISHED:
-        pytest.skip("published table present")
-    with pytest.raises(ct.SpenceDataUnavailable):
-        ct.spence_stick_ratio(0.3, 0.5)
+def test_spence_published_value():
+    """Spence (1975) via Kalker (1990, sec. 5.3.1) / the CONTACT user guide: nu = 0,
+    F = 0.2986, c/a = 0.5; the entry's printed beta/F agrees with beta(0) / F."""
+    v, = [v for v in ct.SPENCE_PUBLISHED if v.nu == 0.0 and v.friction == 0.2986]
+    assert v.c_over_a == 0.5 and v.source
+    assert math.isclose(ct.dundurs_beta_rigid(0.0) / 0.2986, 1.6745, rel_tol=1e-4)
+    assert math.isclose(v.beta_over_f, ct.dundurs_beta_rigid(v.nu) / v.friction, rel_tol=1e-4)
+    assert ct.spence_stick_ratio(0.0, 0.2986) == 0.5
+    assert ct.spence_stick_ratio(0.0, 0.5 / 1.6745) == 0.5                # by beta/F
 
 
-@pytest.mark.skipif(not ct.SPENCE_PUBLISHED, reason="no published Spence values tabulated")
-def test_spence_published_table_reproduced_and_monotonic():
-    xs, ys = zip(*sorted(ct.SPENCE_PUBLISHED))
-    for x, y in zip(xs, ys):
-        f = ct.dundurs_beta_rigid(0.3) / x if x > 0 else math.inf
-        assert math.isclose(ct.spence_stick_ratio(0.3, f), y, rel_tol=1e-12, abs_tol=1e-12)
-    assert all(d <= 0 for d in np.diff(ys))
+def test_spence_untabulated_values_are_refused():
+    """One published value is not a curve: nothing is interpolated or extrapolated from it,
+    nor carried to another Poisson ratio at the same beta/F."""
+    for nu, f in ((0.3, 0.5), (0.0, 0.5), (0.0, 0.31), (0.3, ct.dundurs_beta_rigid(0.3) / 1.6745)):
+        with pytest.raises(ct.SpenceDataUnavailable):
+            ct.spence_stick_ratio(nu, f)
+
+
+def test_spence_published_table_consistent_and_monotonic():
+    for v in ct.SPENCE_PUBLISHED:
+        assert 0.0 <= v.nu <= 0.5 and 0.0 < v.c_over_a < 1.0
+        assert math.isclose(ct.spence_stick_ratio(v.nu, v.friction), v.c_over_a, rel_tol=1e-12)
+    for nu in {v.nu for v in ct.SPENCE_PUBLISHED}:                     # more friction, more stick
+        xs, ys = zip(*sorted((v.beta_over_f, v.c_over_a) for v in ct.SPENCE_PUBLISHED
+                             if v.nu == nu))
+        assert all(d <= 0 for d in np.diff(ys))
 
 
 # A made-up smooth monotone curve, c/a = 1/(1+x), ONLY to test the interpolation code.

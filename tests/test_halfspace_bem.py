@@ -240,3 +240,18 @@ def test_goodman_approximation_depends_on_beta_over_f_only():
     assert abs(d3["c_over_a_lsq"] - d0["c_over_a_lsq"]) < 0.01
     assert d3["P"] == pytest.approx(d3["P_hertz"], rel=2e-3)       # pressure stays Hertz's
     assert res["full", 0.0][0] < res["full", 0.3][0] - 0.03
+
+
+def test_spence_published_value_nu0():
+    """Spence (1975), tabulated by Kalker (1990, sec. 5.3.1): nu = 0, f = 0.2986 (beta/f =
+    1.6745) gives c/a = 0.5 (contact/validation/theory.py). At n = 40 (a/h = 15) the element
+    counts place the stick edge to within about half an element, h/(2a) = 0.033; the
+    least-squares ratio over the last steps and the sub-element edge estimate to within
+    0.02 (grids n = 20 ... 60 give 0.501 ... 0.514 for both, drifting towards 0.5)."""
+    from contact.validation import theory as th
+    v, = [v for v in th.SPENCE_PUBLISHED if v.nu == 0.0]
+    ca, a, d = hb.stick_ratio(v.nu, v.friction, n=40, steps=20)
+    assert max(d["residuals"].values()) < 1e-8, d["residuals"]
+    assert abs(ca - v.c_over_a) < 0.5 * d["h_over_a"]
+    assert abs(d["c_over_a_lsq"] - v.c_over_a) < 0.02
+    assert abs(d["c_over_a_int"] - v.c_over_a) < 0.02

@@ -1,0 +1,203 @@
+"""The runs/ scripts as examples (as scikit-fem's tests/test_examples.py runs its examples):
+each runs as a user would, at its smallest size (--smoke), into a temporary directory, and
+what it wrote is checked against numbers that do not come from the script: the paper's
+node counts, rigid-block statics, Hertz, Spence's published stick ratio, the agreement of
+two independent references, a 2-rank run against the 1-rank one.
+
+Serial only: the scripts start their own processes and ranks. runs/results/ must come out
+untouched (checked at the end).
+"""
+import json
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT, skip_in_parallel
+
+from contact.validation import harness, theory as th
+
+pytestmark = skip_in_parallel
+RESULTS = os.path.join(ROOT, "runs", "results")
+
+
+def n_p(nd):
+    """The paper's count of displacement unknowns, 3 (3Nd+1)(Nd+1)^2 (clamped included)."""
+    return 3 * (3 * nd + 1) * (nd + 1) ** 2
+
+
+def n_d(nd):
+    """The paper's count of contact multipliers, (3Nd+1)(Nd+1)."""
+    return (3 * nd + 1) * (nd + 1)
+
+
+def script(name, *args, timeout=300, rc=0):
+    """Run runs/<name> with these arguments; returns (stdout, stderr), after checking the
+    exit status."""
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "runs", name), *map(str, args)],
+                       cwd=ROOT, env=harness.environment(), capture_output=True, text=True,
+                       timeout=timeout)
+    assert p.returncode == rc, f"exit {p.returncode}\n{p.stdout[-2000:]}\n{p.stderr[-3000:]}"
+    return p.stdout, p.stderr
+
+
+def table_rows(text, first):
+    """Cells of the markdown table rows whose first cell is `first`."""
+    out = []
+    for line in text.splitlines():
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if cells[0] == str(first):
+                out.append(cells)
+    return out
+
+
+def read(path):
+    assert os.path.exists(path), path
+    with open(path) as f:
+        return f.read()
+
+
+def _snapshot():
+    return {os.path.join(d, f): (os.path.getmtime(os.path.join(d, f)),
+                                 os.path.getsize(os.path.join(d, f)))
+            for d, _, fs in os.walk(RESULTS) for f in fs}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def results_untouched():
+    before = _snapshot()
+    yield
+    assert _snapshot() == before, "a runs/ script wrote into runs/results/"
+
+
+@pytest.mark.parametrize("name,option", [("bench.py", "--out-dir"), ("report.py", "--out-dir"),
+                                         ("stability.py", "--out-dir"),
+                                         ("validate.py", "--out"),
+                                         ("validate_block.py", "--out"),
+                                         ("validate_incline.py", "--out")])
+def test_smoke_needs_an_output_place(name, option):
+    """--smoke never falls back on runs/results/ or runs/out/."""
+    _, err = script(name, "--smoke", rc=2)
+    assert option in err and "--smoke" in err
+
+
+def test_bench(tmp_path):
+    script("bench.py", "--smoke", "--out-dir", tmp_path)
+    md = read(tmp_path / "bench.md")
+    assert "Machine:" in md and "Command: `python runs/bench.py --smoke" in md
+    row, = [r for r in table_rows(md, 2) if len(r) == 14]                # Table 1, Nd = 2
+    assert (int(row[1]), int(row[2])) == (n_p(2), n_d(2))
+    assert 6 <= int(row[5]) <= 10                          # fixed-point its (paper: 8)
+    # two references by different linear solvers agree; fast mode close to them
+    agree = re.search(r"they differ by (\S+) \(displacement", md)
+    assert float(agree.group(1)) < 1e-8
+    fast, = [r for r in table_rows(md, "fast")]
+    assert float(fast[3]) < 1e-5 and float(fast[4]) < 1e-5
+    assert table_rows(md, "faithful") and "memory-traffic floor" in md
+    # 1 rank vs 2 ranks: two rows, and the 2-rank run's answer is the 1-rank one's
+    assert [r[1] for r in table_rows(md, 2) if len(r) == 7] == ["1", "2"]
+    one = harness.cached(tmp_path / "fast-nd2", ["-nd", 2, "-solver_mode", "fast"])
+    two = harness.cached(tmp_path / "fast-nd2-np2", ["-nd", 2, "-solver_mode", "fast"], 2)
+    assert one.ok and two.ok and two.summary["ranks"] == 2
+    assert harness.rel_errors(two, one)["u"] < 1e-5           # fast mode: 3e-7 from the ref.
+
+
+def test_report(tmp_path):
+    script("report.py", "--smoke", "--out-dir", tmp_path)
+    md = read(tmp_path / "report.md")
+    refs = table_rows(md, 2)
+    assert any("SSN" in r[1] for r in refs) and any("FISTA" in r[1] for r in refs)
+    # the two references, different algorithms (SSN, FISTA + restart), agree
+    agreement = [r for r in refs if len(r) == 4]
+    assert agreement and max(float(x) for x in agreement[0][1:]) < 1e-8
+    for variant in ("faithful", "restart", "diagonal", "ssn", "fast"):
+        row, = table_rows(md, variant)
+        assert row[-1] == "True" and float(row[5]) < 1e-3, row       # converged, error
+    assert float(table_rows(md, "fast")[0][5]) < 1e-5
+    mesh = [r for r in table_rows(md, 1) if len(r) == 11]
+    assert mesh and int(mesh[0][1]) == n_p(1)
+    for f in ("error_vs_time_nd2.png", "mesh_convergence.png", "data.json"):
+        assert os.path.getsize(tmp_path / "report" / f) > 0
+    data = json.loads(read(tmp_path / "report" / "data.json"))
+    assert data["sizes"]["2"]["agreement"]["u"] < 1e-8
+
+
+def test_stability(tmp_path):
+    script("stability.py", "--smoke", "--out-dir", tmp_path)
+    md = read(tmp_path / "stability.md")
+    assert md.count("**Findings.**") == 8                     # every group's findings render
+    row = {c[0]: c for c in (table_rows(md, i)[0] for i in
+                             ("F-fast-nd4-0.3", "load-press-300", "fvar-negative",
+                              "fvar-syntax", "F-fast-relax-0.6"))}
+    assert row["F-fast-nd4-0.3"][4] == "converged"
+    sep, stick, slip = map(int, row["load-press-300"][10].split(" / "))
+    assert sep == 0 and stick + slip > 0                      # pressed flat: nothing lifts
+    for bad in ("fvar-negative", "fvar-syntax"):              # named one-line errors
+        assert row[bad][4].startswith("failed: `contact: error: friction")
+        assert "traceback" not in row[bad][11].lower()
+    assert row["F-fast-relax-0.6"][4] != "not run (no cached result)"
+
+
+def test_table1(tmp_path):
+    out, _ = script("table1.py", "--smoke", "--out-dir", tmp_path)
+    row, = table_rows(out, 2)
+    assert (int(row[1]), int(row[2])) == (n_p(2), n_d(2))
+    assert 6 <= int(row[5]) <= 10                             # paper: 8 for every mesh
+    assert float(row[13]) < 1e-4                              # residual
+    again, _ = script("table1.py", "--collect", tmp_path / "table1-nd2")
+    assert table_rows(again, 2) == [row]
+
+
+def test_validate(tmp_path):
+    script("validate.py", "--smoke", "--bem", "--out", tmp_path / "validation.md")
+    md = read(tmp_path / "validation.md")
+    hz, = [r for r in table_rows(md, 2) if len(r) == 16]      # Hertz, nd = 2
+    err_a, err_p0 = (float(x.rstrip("%")) / 100 for x in (hz[7], hz[10]))
+    assert abs(err_a) < 0.05 and abs(err_p0) < 0.05
+    assert len([r for r in md.splitlines() if re.match(r"\| 0\.0\d+ \| ", r)]) == 2  # curve
+    sp, = table_rows(md, "0.0")                               # the published Spence case
+    v, = [v for v in th.SPENCE_PUBLISHED if v.nu == 0.0]
+    assert float(sp[1]) == v.friction and sp[6] == f"{v.c_over_a:.3f}"
+    assert abs(float(sp[5]) - v.c_over_a) < 0.05              # BEM, n = 20 (h/a = 0.13)
+    h, a = 0.25, float(sp[7])                                  # nd = 2: core cell 1/4
+    assert abs(float(sp[3]) - v.c_over_a) <= 0.5 * h / a       # FE, to its resolution
+    for png in ("hertz_pressure.png", "hertz_force_indentation.png", "spence_stick_zones.png"):
+        assert os.path.getsize(tmp_path / "validation" / png) > 0
+
+
+def test_validate_block(tmp_path):
+    script("validate_block.py", "--smoke", "--out", tmp_path / "validation_block.md")
+    md = read(tmp_path / "validation_block.md")
+    held, = table_rows(md, "0.5")                             # q = F p / 2: statics hold
+    assert held[1] == "holds" and held[8] == "holds"
+    for stick, cone in ((held[2], held[4]), (held[9], held[11])):
+        assert 0 < float(stick) <= 1 and float(cone) < 1e-5   # inside Coulomb's cone
+    beyond, = table_rows(md, "1.2")                           # q > F p: no equilibrium
+    assert beyond[1] == beyond[8] == "refused (statics check)"
+    assert md.count("exceeds the friction limit") == 2
+    assert os.path.getsize(tmp_path / "validation" / "block_shear.png") > 0
+
+
+def test_validate_incline(tmp_path):
+    script("validate_incline.py", "--smoke", "--out", tmp_path / "validation_incline.md")
+    md = read(tmp_path / "validation_incline.md")
+    held, = table_rows(md, "10")                              # tan 10 deg < F = 0.5
+    assert held[2:4] == ["stays", "held"]
+    assert abs(float(held[4]) - 1) < 1e-4 and abs(float(held[5]) - 1) < 1e-3   # N, R_tau
+    slides, = table_rows(md, "35")                            # tan 35 deg > F
+    assert slides[2:4] == ["slides", "refused"]
+    for mode in ("faithful", "fast"):                         # the turned beam: R u
+        row, = table_rows(md, mode)
+        assert float(row[2]) < 1e-6
+
+
+def test_petsc_gpu_script():
+    path = os.path.join(ROOT, "runs", "petsc_gpu.sh")
+    assert subprocess.run(["bash", "-n", path]).returncode == 0
+    p = subprocess.run(["bash", path, "--help"], capture_output=True, text=True)
+    assert p.returncode == 0
+    for cmd in ("fetch DIR", "build DIR PREFIX", "check PREFIX", "measure PREFIX"):
+        assert cmd in p.stdout
+    assert subprocess.run(["bash", path], capture_output=True).returncode == 2
