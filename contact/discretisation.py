@@ -94,66 +94,89 @@ class Discretisation:
         self.conn, self.coords = conn, coords = mesh.cell_vertices(dm)
         mesh.check_cells(comm, conn, coords)
 
+        self._parts()
+        self._contact_set()
+        mat = sc["material"]
+        self.A = fem.assemble_stiffness(dm, conn, self.coords, mat["young"], mat["poisson"],
+                                        frame=self.frame)
+        self._loads()
+        self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
+        self.n_dofs = self.A.getSize()[0]
+
+    def _parts(self):
+        """Boundary parts (faces), the dirichlet and symmetry constraints, clamped rows."""
+        sc, dm, conn, coords = self.scene, self.dm, self.conn, self.coords
         bnd = sc["boundary"]
         parts = {name: self._part_faces(name, part, conn, coords)
                  for name, part in bnd.items()}
-        if "rotate" in m:                        # after the parts: planes name the mesh as read
-            self.coords = coords = mesh.rotate_coordinates(dm, coords, **m["rotate"])
+        if "rotate" in sc["mesh"]:               # after the parts: planes name the mesh as read
+            self.coords = coords = mesh.rotate_coordinates(dm, coords, **sc["mesh"]["rotate"])
         self.parts = parts
         mesh.label_parts(dm, parts)
-        body_force = sc.get("body_force", [0, 0, 0])
-        if not any(body_force):
-            self.skipped.append("body-force assembly (no body force)")
-        named = [(n, (parts[n], [AXES[c] for c in p["components"]],
-                      p.get("displacement", [0.0, 0.0, 0.0])))
-                 for n, p in bnd.items() if p["type"] == "dirichlet"]
-        named += [(n, (parts[n], [self._symmetry_axis(n, parts[n], coords)], [0.0] * 3))
-                  for n, p in bnd.items() if p["type"] == "symmetry"]
-        constraints = [c for _, c in named]
+        #: (name, (faces, components, displacement)) of the dirichlet and symmetry parts
+        self.constraints = [(n, (parts[n], [AXES[c] for c in p["components"]],
+                                 p.get("displacement", [0.0, 0.0, 0.0])))
+                            for n, p in bnd.items() if p["type"] == "dirichlet"]
+        self.constraints += [(n, (parts[n], [self._symmetry_axis(n, parts[n], coords)],
+                                  [0.0] * 3))
+                             for n, p in bnd.items() if p["type"] == "symmetry"]
         #: clamped rows in x, y, z (the rigid-motion checks) and in the loops' basis
         self.clamped_xyz = self.clamped = fem.dirichlet_rows(
-            dm, coords.shape[0], [c[:2] for c in constraints])
+            dm, coords.shape[0], [c[:2] for _, c in self.constraints])
         self.coordinates = fem.global_coordinates(dm, coords)
 
-        cfaces = [parts[n] for n, p in bnd.items() if p["type"] == "contact"]
+    def _contact_set(self):
+        """The contact set, and the frame of a foundation off the axes (clamped rows in it)."""
+        sc, dm, coords = self.scene, self.dm, self.coords
+        bnd = sc["boundary"]
+        cfaces = [self.parts[n] for n, p in bnd.items() if p["type"] == "contact"]
         self.has_contact_part = bool(cfaces)
         self.normal = foundation_normal(sc)
         self.cs = self.frame = None              # frame: contact/frame.py (tilted foundation)
-        if self.has_contact_part:
-            con = sc.get("contact", {})
-            fd = con.get("foundation", {})
-            template = dm.createGlobalVec()
-            rstart = template.getOwnershipRange()[0]
-            self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
-                                 con.get("friction", 0.0), template, normal=self.normal,
-                                 point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"))
-            template.destroy()
-            if self.cs.off_axes:                 # n off the axes: contact dofs (t1, t2, n)
-                self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes,
-                                          coords.shape[0])
-                self.clamped = self.frame.clamped_rows(self.clamped, rstart)
-        mat = sc["material"]
-        self.A = fem.assemble_stiffness(dm, conn, coords, mat["young"], mat["poisson"],
-                                        frame=self.frame)
+        if not self.has_contact_part:
+            return
+        con = sc.get("contact", {})
+        fd = con.get("foundation", {})
+        template = dm.createGlobalVec()
+        rstart = template.getOwnershipRange()[0]
+        self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
+                             con.get("friction", 0.0), template, normal=self.normal,
+                             point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"))
+        template.destroy()
+        if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
+            self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])
+            self.clamped = self.frame.clamped_rows(self.clamped, rstart)
+
+    def _loads(self):
+        """u_D, the load groups: the parts sharing a ramp [t0, t1] (loading schedule), each
+        with its load b_g = f_g - A u_D,g (u_D,g: u_D with the other groups' values set to
+        0, so that sum_g u_D,g = u_D); b = sum_g b_g is the full load. The clamped rows are
+        eliminated from A, b and every b_g."""
+        sc, dm, conn, coords = self.scene, self.dm, self.conn, self.coords
+        bnd, named = sc["boundary"], self.constraints
+        nonzero = lambda cons: any(np.any(np.asarray(c[2], dtype=float) != 0.0)  # noqa: E731
+                                   for _, c in cons)
+        body_force = sc.get("body_force", [0, 0, 0])
+        if not any(body_force):
+            self.skipped.append("body-force assembly (no body force)")
         self.u_D = None                          # prescribed displacement (None: all zero)
-        if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in constraints):
-            self.u_D = self.to_frame(fem.dirichlet_values(dm, coords.shape[0], constraints))
-        # load groups: the parts sharing a ramp [t0, t1] (loading schedule), each with its
-        # load b_g = f_g - A u_D,g (u_D,g: u_D with the other groups' values set to 0, so
-        # that sum_g u_D,g = u_D); b = sum_g b_g is the full load
+        if nonzero(named):
+            self.u_D = self.to_frame(fem.dirichlet_values(dm, coords.shape[0],
+                                                          [c for _, c in named]))
         ramps = sorted({tuple(p.get("ramp", DEFAULT_RAMP)) for p in bnd.values()
                         if p["type"] in ("traction", "dirichlet")} | {DEFAULT_RAMP})
         self.load_groups = []
         for ramp in ramps:
             mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
             bg = fem.load_vector(dm, conn, coords,
-                                 [(parts[n], bnd[n]["traction"]) for n in sorted(mine)
+                                 [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
                                   if bnd[n]["type"] == "traction"],
                                  body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0])
             self.to_frame(bg)
-            masked = [(f, c, v if n in mine else [0.0] * 3) for n, (f, c, v) in named]
-            if any(np.any(np.asarray(c[2], dtype=float) != 0.0) for c in masked):
-                u_g = self.to_frame(fem.dirichlet_values(dm, coords.shape[0], masked))
+            masked = [(n, (f, c, v if n in mine else [0.0] * 3)) for n, (f, c, v) in named]
+            if nonzero(masked):
+                u_g = self.to_frame(fem.dirichlet_values(dm, coords.shape[0],
+                                                         [c for _, c in masked]))
                 lift = bg.duplicate()
                 self.A.mult(u_g, lift)
                 bg.axpy(-1.0, lift)              # b_g - A u_D,g: solve for u - u_D
@@ -172,8 +195,6 @@ class Discretisation:
         if len(self.load_groups) == 1:           # one group: b itself
             self.load_groups[0][2].destroy()
             self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
-        self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
-        self.n_dofs = self.A.getSize()[0]
 
     def to_frame(self, vec):
         """In place: a Vec in x, y, z -> the loops' basis (the same Vec without a frame)."""
