@@ -11,6 +11,10 @@ Parts (--part, default all):
           memory-traffic floor (bytes of one MatMult plus the vector passes, divided by the
           bandwidth PETSc's VecWAXPY reaches on this machine).
   ranks   fast mode on 1 and 2 ranks, Nd = 20 and 40: solve time, speed-up, memory.
+The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
++ solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
+free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
+run; table1 and ranks give solve / LSE and set-up / LSE.
 Each case runs `python -m contact ...` in runs/out/bench/<case> (--out-dir); a case whose
 summary.json exists is reused (--force reruns). Times are wall-clock seconds of the solve
 stage. --smoke: every part at Nd = 2 (floor: 300 iterations, a small bandwidth array),
@@ -39,6 +43,17 @@ def run(args, case, nd, opts, np_=1, force=None, log_view=False, timeout=3600):
                             force=args.force if force is None else force, timeout=timeout)
 
 
+LSE_SCENE = os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml")
+
+
+def lse(args, nd, np_=1):
+    """Seconds of one linear-solve equivalent at this Nd on np_ ranks (see the docstring)."""
+    s = run(args, f"lse-nd{nd}" + (f"-np{np_}" if np_ > 1 else ""), nd,
+            ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"], np_=np_).summary
+    assert s["mode"] == "linear", s["mode"]
+    return s["time_s"]["solve"]
+
+
 def mem(s):
     return max(s["peak_rss_mib"])
 
@@ -48,17 +63,20 @@ def part_table1(args, lines):
               "Command: `python -m contact -nd N -solver_mode fast` (1 rank).", "",
               "| Nd | n_p | n_d | SSN its (1st Uzawa) | Uzawa its (mean) | FP its | SSN its "
               "(total) | KSP its (total) | solve time, s | setup, s | peak memory / rank, "
-              "MiB | paper: APG 1st / Uzawa / FP | paper time, s | speed-up vs paper |",
-              "|" + "---|" * 14]
+              "MiB | paper: APG 1st / Uzawa / FP | paper time, s | speed-up vs paper | "
+              "LSE, s | solve / LSE | set-up / LSE |",
+              "|" + "---|" * 17]
     for nd in args.nd:
         s = run(args, f"fast-nd{nd}", nd, FAST).summary
         it, t = s["iterations"], s["time_s"]
+        unit = lse(args, nd)
         pa = PAPER.get(nd, ("–",) * 4)
         sp = f"{pa[3] / t['solve']:.0f}x" if nd in PAPER else "–"
         lines.append(f"| {nd} | {s['dofs']} | {s['contact_nodes']} | {it['inner_first']} | "
                      f"{it['uzawa_mean']:.1f} | {it['fixed_point']} | {it['inner_total']} | "
                      f"{it['ksp_total']} | {t['solve']:.2f} | {t['setup']:.2f} | "
-                     f"{mem(s):.0f} | {pa[0]} / {pa[1]} / {pa[2]} | {pa[3]} | {sp} |")
+                     f"{mem(s):.0f} | {pa[0]} / {pa[1]} / {pa[2]} | {pa[3]} | {sp} | "
+                     f"{unit:.2f} | {t['solve'] / unit:.1f} | {t['setup'] / unit:.1f} |")
     lines.append("")
 
 
@@ -163,7 +181,7 @@ def _floor_cases(smoke=False):
 def part_ranks(args, lines):
     lines += ["## 1 rank vs 2 ranks, fast mode", "",
               "| Nd | ranks | solve time, s | speed-up | setup, s | peak memory per rank, MiB "
-              "| SSN / KSP its |", "|---|---|---|---|---|---|---|"]
+              "| SSN / KSP its | LSE, s | solve / LSE |", "|---|---|---|---|---|---|---|---|---|"]
     for nd in args.ranks_nd:
         t1 = None
         for np_ in (1, 2):
@@ -173,7 +191,8 @@ def part_ranks(args, lines):
             t1 = t if np_ == 1 else t1
             lines.append(f"| {nd} | {np_} | {t:.2f} | {t1 / t:.2f} | {s['time_s']['setup']:.2f} "
                          f"| {' / '.join(f'{m:.0f}' for m in s['peak_rss_mib'])} | "
-                         f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} |")
+                         f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} | "
+                         f"{lse(args, nd, np_):.2f} | {t / lse(args, nd, np_):.1f} |")
     lines.append("")
 
 

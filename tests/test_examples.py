@@ -20,6 +20,7 @@ from contact.validation import harness, theory as th
 
 pytestmark = skip_in_parallel
 RESULTS = os.path.join(ROOT, "runs", "results")
+LSE_SCENE = os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml")
 
 
 def n_p(nd):
@@ -87,9 +88,16 @@ def test_bench(tmp_path):
     script("bench.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "bench.md")
     assert "Machine:" in md and "Command: `python runs/bench.py --smoke" in md
-    row, = [r for r in table_rows(md, 2) if len(r) == 14]                # Table 1, Nd = 2
+    row, = [r for r in table_rows(md, 2) if len(r) == 17]                # Table 1, Nd = 2
     assert (int(row[1]), int(row[2])) == (n_p(2), n_d(2))
     assert 6 <= int(row[5]) <= 10                          # fixed-point its (paper: 8)
+    # the LSE: a linear solve of the same mesh, timed; solve / LSE is their ratio
+    lse = harness.cached(tmp_path / "lse-nd2", ["-nd", 2, "-scene", LSE_SCENE,
+                                                  "-elastic_ksp_rtol", "1e-8"])
+    assert lse.ok and lse.summary["mode"] == "linear" and lse.summary["dofs"] == n_p(2)
+    fast = harness.cached(tmp_path / "fast-nd2", ["-nd", 2, "-solver_mode", "fast"])
+    ratio = fast.summary["time_s"]["solve"] / lse.summary["time_s"]["solve"]
+    assert abs(float(row[15]) - ratio) <= 0.051 and float(row[14]) >= 0.0
     # two references by different linear solvers agree; fast mode close to them
     agree = re.search(r"they differ by (\S+) \(displacement", md)
     assert float(agree.group(1)) < 1e-8
@@ -97,7 +105,7 @@ def test_bench(tmp_path):
     assert float(fast[3]) < 1e-5 and float(fast[4]) < 1e-5
     assert table_rows(md, "faithful") and "memory-traffic floor" in md
     # 1 rank vs 2 ranks: two rows, and the 2-rank run's answer is the 1-rank one's
-    assert [r[1] for r in table_rows(md, 2) if len(r) == 7] == ["1", "2"]
+    assert [r[1] for r in table_rows(md, 2) if len(r) == 9 and r[1].isdigit()] == ["1", "2"]
     one = harness.cached(tmp_path / "fast-nd2", ["-nd", 2, "-solver_mode", "fast"])
     two = harness.cached(tmp_path / "fast-nd2-np2", ["-nd", 2, "-solver_mode", "fast"], 2)
     assert one.ok and two.ok and two.summary["ranks"] == 2
