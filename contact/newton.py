@@ -145,45 +145,7 @@ class SemismoothNewton(Loop):
         cs.scatter(self.c2, diag, 2, mode=add)
         self._stick = None
         if lam is not None:
-            x1, x2, _ = sub.contact_arrays(x, self.c0)
-            g1, g2, _ = sub.contact_arrays(grad, self.c0)
-            if theta_model:
-                z1, z2, tau = x1, x2, np.zeros_like(lam)
-            else:
-                z1, z2, tau = x1 - self.alpha * g1, x2 - self.alpha * g2, self.alpha * lam
-            nz = np.hypot(z1, z2)
-            fric = lam > 0.0
-            slip = fric & (nz > tau)
-            stick = fric & ~slip
-            # slip: curvature c (I - n n^T) and s = lambda n + c (I - n n^T) x_tau
-            ns = np.where(slip, nz, 1.0)
-            n1, n2 = np.where(slip, z1 / ns, 0.0), np.where(slip, z2 / ns, 0.0)
-            dA = 1.0 / self.alpha
-            c = np.where(slip, lam / np.maximum(nz - tau, 1e-300), 0.0)
-            c = np.minimum(c, 1e8 * dA)                      # nearly stuck: bounded curvature
-            px = x1 * n1 + x2 * n2                           # n . x_tau
-            s1 = lam * n1 + c * (x1 - n1 * px)
-            s2 = lam * n2 + c * (x2 - n2 * px)
-            self.c0.setArray(-np.where(slip, s1, 0.0))
-            self.c1.setArray(-np.where(slip, s2, 0.0))
-            cs.scatter(self.c0, rhs, 0, mode=add)
-            cs.scatter(self.c1, rhs, 1, mode=add)
-            self.c0.setArray(c * (1.0 - n1 * n1))
-            self.c1.setArray(c * (1.0 - n2 * n2))
-            cs.scatter(self.c0, diag, 0, mode=add)
-            cs.scatter(self.c1, diag, 1, mode=add)
-            k = np.flatnonzero(slip)
-            if k.size:                                       # off-diagonal -c n1 n2
-                d0, d1 = cs.dofs[0][k], cs.dofs[1][k]
-                off = -c[k] * n1[k] * n2[k]
-                R = np.concatenate([d0, d1]).reshape(-1, 1).astype(PETSc.IntType)
-                C = np.concatenate([d1, d0]).reshape(-1, 1).astype(PETSc.IntType)
-                V = np.concatenate([off, off]).reshape(-1, 1, 1)
-                K.setValuesRCV(R, C, V, add)
-            k = np.flatnonzero(stick)
-            rows = np.concatenate([cs.dofs[0][k], cs.dofs[1][k]]).astype(PETSc.IntType)
-            self._stick = (rows, np.concatenate([-x1[k], -x2[k]]))
-            self.n_stick, self.n_slip = int(stick.sum()), int(slip.sum())
+            stick, slip = self._friction(x, grad, lam, theta_model, K, rhs, diag)
             self._sets = (active, stick, slip)
         else:
             self._sets = (active,)
@@ -206,6 +168,52 @@ class SemismoothNewton(Loop):
             self._stick = None
         _EV_MAT.end()
         return K, rhs
+
+    def _friction(self, x, grad, lam, theta_model, K, rhs, diag):
+        """The friction terms of the Newton system: at slip nodes the curvature
+        c (I - n n^T) (diagonal into `diag`, off-diagonal into K) and -s into rhs; the
+        stick nodes' rows and values (self._stick). Returns the stick and slip masks."""
+        sub, cs, add = self.sub, self.sub.cs, PETSc.InsertMode.ADD_VALUES
+        x1, x2, _ = sub.contact_arrays(x, self.c0)
+        g1, g2, _ = sub.contact_arrays(grad, self.c0)
+        if theta_model:
+            z1, z2, tau = x1, x2, np.zeros_like(lam)
+        else:
+            z1, z2, tau = x1 - self.alpha * g1, x2 - self.alpha * g2, self.alpha * lam
+        nz = np.hypot(z1, z2)
+        fric = lam > 0.0
+        slip = fric & (nz > tau)
+        stick = fric & ~slip
+        # slip: curvature c (I - n n^T) and s = lambda n + c (I - n n^T) x_tau
+        ns = np.where(slip, nz, 1.0)
+        n1, n2 = np.where(slip, z1 / ns, 0.0), np.where(slip, z2 / ns, 0.0)
+        dA = 1.0 / self.alpha
+        c = np.where(slip, lam / np.maximum(nz - tau, 1e-300), 0.0)
+        c = np.minimum(c, 1e8 * dA)                      # nearly stuck: bounded curvature
+        px = x1 * n1 + x2 * n2                           # n . x_tau
+        s1 = lam * n1 + c * (x1 - n1 * px)
+        s2 = lam * n2 + c * (x2 - n2 * px)
+        self.c0.setArray(-np.where(slip, s1, 0.0))
+        self.c1.setArray(-np.where(slip, s2, 0.0))
+        cs.scatter(self.c0, rhs, 0, mode=add)
+        cs.scatter(self.c1, rhs, 1, mode=add)
+        self.c0.setArray(c * (1.0 - n1 * n1))
+        self.c1.setArray(c * (1.0 - n2 * n2))
+        cs.scatter(self.c0, diag, 0, mode=add)
+        cs.scatter(self.c1, diag, 1, mode=add)
+        k = np.flatnonzero(slip)
+        if k.size:                                       # off-diagonal -c n1 n2
+            d0, d1 = cs.dofs[0][k], cs.dofs[1][k]
+            off = -c[k] * n1[k] * n2[k]
+            R = np.concatenate([d0, d1]).reshape(-1, 1).astype(PETSc.IntType)
+            C = np.concatenate([d1, d0]).reshape(-1, 1).astype(PETSc.IntType)
+            V = np.concatenate([off, off]).reshape(-1, 1, 1)
+            K.setValuesRCV(R, C, V, add)
+        k = np.flatnonzero(stick)
+        rows = np.concatenate([cs.dofs[0][k], cs.dofs[1][k]]).astype(PETSc.IntType)
+        self._stick = (rows, np.concatenate([-x1[k], -x2[k]]))
+        self.n_stick, self.n_slip = int(stick.sum()), int(slip.sum())
+        return stick, slip
 
     def _linear_solve(self, rhs):
         """dx <- K^-1 rhs; the eliminated rows get their exact values (0 on clamped rows,
