@@ -7,7 +7,7 @@ VENV     ?= .venv
 PY       := $(VENV)/bin/python
 STAMP    := $(VENV)/.installed
 NP       ?= 2
-ARGS     ?= -nd 10 -fp_monitor
+ARGS     ?= -nd 10 -fp_monitor -output_formats h5,xdmf,json,png
 DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
             python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
 PIP_PKGS := pymetis clarabel gmsh
@@ -16,11 +16,12 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 
-.PHONY: install run run2 test test1 test2 bench report stability validate clean help
+.PHONY: install run run2 test test1 test2 bench report stability validate clean help view
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
 	@echo "make test                       install if needed, run the suite on 1 and 2 ranks"
+	@echo "make view  [VIEW_DIR=runs/out/...]  ParaView (installed if needed) renders the last run -> PNGs"
 	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"
 	@echo "make petsc-gpu [GPU_ARGS=--cpu]  (offline) CUDA PETSc + petsc4py -> .gpu/prefix (README: GPU)"
 	@echo "make install                    Debian packages + .venv (idempotent)"
@@ -59,6 +60,28 @@ run: install
 
 run2: install
 	$(MPIRUN) $(PY) -m contact $(ARGS)
+
+# ParaView renders the last run (the newest runs/out/*/solution.xdmf, or VIEW_DIR):
+# contact/pvview.py under pvbatch checks that it finds every field of the XDMF and writes
+# paraview_body.png and paraview_contact.png beside it (offscreen, in Xvfb: a 24-bit
+# screen, and an auth file of our own: xvfb-run's own temporary directory sometimes fails
+# its clean-up, exit status 5, after the work is done).
+PV_PKGS  := paraview python3-paraview xvfb xauth
+VIEW_DIR ?= $(patsubst %/solution.xdmf,%,$(firstword $(shell ls -t runs/out/*/solution.xdmf 2>/dev/null)))
+
+view:
+	@missing=""; for p in $(PV_PKGS); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends $$missing; \
+	fi
+	@test -n "$(VIEW_DIR)" && test -f "$(VIEW_DIR)/solution.xdmf" || \
+	  { echo "make view: no solution.xdmf (make run first, or VIEW_DIR=DIR)"; exit 1; }
+	@auth=$$(mktemp); xvfb-run -a -f $$auth -s "-screen 0 1280x1024x24" \
+	  pvbatch contact/pvview.py $(VIEW_DIR); rc=$$?; rm -f $$auth; exit $$rc
 
 test: install test1 test2
 

@@ -15,7 +15,7 @@ import copy
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, options, residuals as res, transfer
+from . import fem, options, output, residuals as res, transfer
 from .apg import APG
 from .discretisation import DEFAULT_RAMP
 from .fixedpoint import FixedPoint
@@ -131,6 +131,7 @@ def solve_incremental(pr, n):
     v = pr.x.duplicate()
     v.set(0.0)
     pr.step_log, g_start = [], None
+    record = output.increment_recorder(pr)       # each increment's fields for the files
     for k in range(1, n + 1):
         A.mult(v, b)
         b.scale(-1.0)
@@ -143,6 +144,8 @@ def solve_incremental(pr, n):
         solve_contact(pr, b, gap, g0=g_start)
         check_solution(pr, b, gap)
         v.axpy(1.0, pr.x)
+        if record is not None:
+            record(k / n, factors, v, b, gap)
         if k == n:
             pr.last_increment = pr.x.copy()          # the slip of the last increment
         pr.step_log.append({"step": k, "load_factor": k / n,

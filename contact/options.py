@@ -71,8 +71,8 @@ REGISTRY = [
            ("loading", "steps")),
     Option("output_dir", None, str, "results directory (default runs/out/<scene>-nd<N>/)",
            "DIR"),
-    Option("output_formats", "h5,xdmf,json", str, "files to write: h5, xdmf, json, or none",
-           "LIST"),
+    Option("output_formats", "h5,xdmf,json", str, "files to write: h5, xdmf, json, png "
+           "(figures), or none", "LIST"),
     Option("check_tol", 1e-3, float, "after the loops every residual must be <= T (0: no "
            "check), else the run fails: a vanishing step (huge r) also stops the loops", "T",
            ("solver", "check_tol")),

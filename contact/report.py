@@ -4,7 +4,7 @@ import resource
 import petsc4py
 from petsc4py import PETSc
 
-from . import residuals as res
+from . import residuals as res, stress
 
 
 def _tolerances(problem):
@@ -57,6 +57,9 @@ def summary(problem, time_total):
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
         "peak_rss_mib": mpicomm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                                           / 1024.0),
+        # contact_result (resultant force, normal and tangential; contact, stick and slip
+        # areas), contact_result_steps (per load increment), von_mises_max (stress.py)
+        **stress.summary(problem),
     }
 
 

@@ -81,6 +81,12 @@ def contact_fields(problem, x=None, b=None, gap=None):
     return out
 
 
+def tractions(f):
+    """(g, sigma_tau) of `contact_fields` f: g_j = R_j3 / w_j (the contact pressure) and
+    sigma_tau,j = (R_j1, R_j2) / w_j (the friction traction), in the contact frame."""
+    return f["R"][:, 2] / f["w"], f["R"][:, :2] / f["w"][:, None]
+
+
 def residuals(problem, x=None, slip_tol=1e-6, b=None, gap=None):
     """The relative residuals documented above (dict); b, gap: a load increment's."""
     comm = problem.comm.tompi4py()
@@ -89,9 +95,8 @@ def residuals(problem, x=None, slip_tol=1e-6, b=None, gap=None):
     if problem.cs is None or problem.cs.size == 0:
         return {"penetration": 0.0, "complementarity": 0.0, "coulomb": 0.0}
     f = contact_fields(problem, x, b, gap)
-    w, F, u, R = f["w"], f["F"], f["u"], f["R"]
-    g = R[:, 2] / w
-    sig_t = R[:, :2] / w[:, None]
+    w, F, u = f["w"], f["F"], f["u"]
+    g, sig_t = tractions(f)
     un = -u[:, 2] - f["gap"]
     ut = np.linalg.norm(u[:, :2], axis=1)
     gmax = _max(comm, np.abs(g))

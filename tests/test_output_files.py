@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, skip_in_parallel
 
+from contact import output
+
 #: the fast mode at Nd = 2 (189 dofs), well under a second per run; its Newton steps'
 #: linear solves (CG + GAMG) converged to rounding instead of the fast mode's 1e-3, so
 #: that two partitions differ by rounding only (see the test)
@@ -30,8 +32,8 @@ def _env():
     return env
 
 
-def _contact(outdir, ranks):
-    cmd = [sys.executable, "-m", "contact", *ARGS, "-output_dir", str(outdir)]
+def _contact(outdir, ranks, *extra):
+    cmd = [sys.executable, "-m", "contact", *ARGS, *extra, "-output_dir", str(outdir)]
     if ranks > 1:
         cmd = ["mpirun", "-n", str(ranks), "--oversubscribe", *cmd]
     p = subprocess.run(cmd, cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=300)
@@ -41,11 +43,18 @@ def _contact(outdir, ranks):
     return str(outdir)
 
 
+#: the runs: the paper's beam (static), and a quasi-static one (block_shear: 4 load
+#: increments, friction-held, press then shear)
+SCENES = {"static": (), "quasi": ("-scene", os.path.join(ROOT, "runs", "scenes",
+                                                            "block_shear.yaml"))}
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """{ranks: output directory} of the same run on 1 and 2 ranks."""
+    """{(scene, ranks): output directory} of the same runs on 1 and 2 ranks."""
     tmp = tmp_path_factory.mktemp("files")
-    return {n: _contact(tmp / f"D{n}", n) for n in (1, 2)}
+    return {(k, n): _contact(tmp / f"{k}{n}", n, *extra) for k, extra in SCENES.items()
+            for n in (1, 2)}
 
 
 def _datasets(path):
@@ -57,17 +66,26 @@ def _datasets(path):
     return out
 
 
+#: XDMF AttributeType -> components per point or cell
+COMPONENTS = {"Scalar": 1, "Vector": 3, "Tensor6": 6}
+
+
 @skip_in_parallel
+@pytest.mark.parametrize("scene", list(SCENES))
 @pytest.mark.parametrize("ranks", [1, 2])
-def test_xdmf_describes_the_h5_file(runs, ranks):
+def test_xdmf_describes_the_h5_file(runs, scene, ranks):
     """Every DataItem of solution.xdmf: Format HDF, `solution.h5:/path` naming a dataset
     that exists, Dimensions = its shape, NumberType/Precision = its dtype; the grids'
-    element and point counts agree with their DataItems."""
-    outdir = runs[ranks]
+    element and point counts agree with their DataItems (hexahedra and quadrilaterals:
+    connectivity into the grid's points; node and cell attributes: one row per point or
+    cell, 1, 3 or 6 components); a quasi-static run's grids are temporal collections with
+    one grid per increment. Every dataset of the file is described (but the steps' load
+    factors), and every field output.py lists is there."""
+    outdir = runs[scene, ranks]
     root = ET.parse(os.path.join(outdir, "solution.xdmf")).getroot()
     assert root.tag == "Xdmf"
     grids = root.findall("./Domain/Grid")
-    assert [g.get("Name") for g in grids] == ["body", "contact"]   # F = 0.3: contact grid
+    assert [g.get("Name") for g in grids] == ["body", "contact"]   # F > 0: contact grid
     seen, checked = set(), []
     with h5py.File(os.path.join(outdir, "solution.h5"), "r") as f:
         def dataset(item):
@@ -87,57 +105,133 @@ def test_xdmf_describes_the_h5_file(runs, ranks):
             checked.append(item)
             return ds
 
-        for grid in grids:
-            topo, geom = grid.find("Topology"), grid.find("Geometry")
-            assert geom.get("GeometryType") == "XYZ"
-            xyz = dataset(geom.find("DataItem"))
-            n = xyz.shape[0]
-            assert xyz.shape == (n, 3)
-            ne, npe = int(topo.get("NumberOfElements")), int(topo.get("NodesPerElement"))
-            item = topo.find("DataItem")
-            if item is not None:                     # hexahedra: connectivity into points
-                conn = dataset(item)[()]
-                assert topo.get("TopologyType") == "Hexahedron" and npe == 8
+        steps = f["/steps/load_factor"][()] if "/steps/load_factor" in f else None
+        for top in grids:
+            if scene == "quasi":
+                assert (top.get("GridType"), top.get("CollectionType")) == \
+                    ("Collection", "Temporal")
+                uniform = top.findall("Grid")
+                times = [float(g.find("Time").get("Value")) for g in uniform]
+                assert times == list(steps) and times[-1] == 1.0 and len(times) == 4
+            else:
+                assert top.get("GridType") == "Uniform" and steps is None
+                uniform = [top]
+            for grid in uniform:
+                topo, geom = grid.find("Topology"), grid.find("Geometry")
+                assert geom.get("GeometryType") == "XYZ"
+                xyz = dataset(geom.find("DataItem"))
+                n = xyz.shape[0]
+                assert xyz.shape == (n, 3)
+                ne, npe = int(topo.get("NumberOfElements")), int(topo.get("NodesPerElement"))
+                kind = {"body": "Hexahedron", "contact": "Quadrilateral"}[top.get("Name")]
+                assert topo.get("TopologyType") == kind and npe == {"Hexahedron": 8,
+                                                                     "Quadrilateral": 4}[kind]
+                conn = dataset(topo.find("DataItem"))[()]
                 assert conn.shape == (ne, npe) and conn.min() >= 0 and conn.max() < n
-                assert np.unique(conn).size == n     # every point in some cell
-            else:                                    # one point per element
-                assert topo.get("TopologyType") == "Polyvertex" and (ne, npe) == (n, 1)
-            for att in grid.findall("Attribute"):
-                assert att.get("Center") == "Node"
-                a = dataset(att.find("DataItem"))
-                assert a.shape == ((n, 3) if att.get("AttributeType") == "Vector" else (n,))
+                if kind == "Hexahedron":
+                    assert np.unique(conn).size == n     # every point in some cell
+                for att in grid.findall("Attribute"):
+                    a = dataset(att.find("DataItem"))
+                    rows = {"Node": n, "Cell": ne}[att.get("Center")]
+                    c = COMPONENTS[att.get("AttributeType")]
+                    assert a.shape == ((rows,) if c == 1 else (rows, c)), att.get("Name")
+        names = set()
+        f.visititems(lambda name, obj: names.add("/" + name)
+                     if isinstance(obj, h5py.Dataset) else None)
     assert len(checked) == len(list(root.iter("DataItem")))    # every DataItem checked
-    assert {"/mesh/coordinates", "/mesh/topology", "/fields/displacement",
-            "/contact/coordinates", "/contact/pressure", "/contact/slip",
-            "/contact/status"} <= seen
+    assert names - seen <= {"/steps/load_factor"}              # every dataset described
+    listed = {"/" + fl.path for fl in output.BODY + output.CONTACT} | \
+        {fl.path for fl in output.MESH if not fl.path.startswith("/steps")}
+    assert listed <= seen
+    if scene == "quasi":                       # each increment before the last has its own
+        assert {f"/steps/0003/{fl.path}" for fl in output.BODY + output.CONTACT} <= seen
+
+
+#: displacements on the contact face: compared at the scale of the body's displacement
+#: (the normal one of a pressed face is the loops' tolerance, 1e-6 of it, alone)
+LENGTHS = ("normal_displacement", "tangential_displacement", "slip")
+
+
+def _scale(data, name):
+    """The largest magnitude of `name`, or of the displacement of its state for the
+    displacements of the contact face."""
+    state, group, base = name.rsplit("/", 2)
+    if base in LENGTHS:
+        return np.abs(data[f"{state}/fields/displacement"]).max()
+    return np.abs(data[name]).max()
 
 
 @skip_in_parallel
-def test_two_ranks_write_the_one_rank_file(runs):
+@pytest.mark.parametrize("scene", list(SCENES))
+def test_two_ranks_write_the_one_rank_file(runs, scene):
     """solution.h5 of `mpirun -n 2` equals the 1-rank file dataset by dataset: the same
     names, shapes and dtypes; the mesh (coordinates, topology) and the contact status
     exactly (canonical node and cell order, coordinates computed from the same box
     formula); the floating-point fields to 1e-10 relative to each dataset's largest
-    magnitude. Not bitwise: the two partitions sum the matrix-vector products, dots and
+    magnitude (a contact face's displacements: of the body's displacement). Not bitwise:
+    the two partitions sum the matrix-vector products, dots and
     norms in other orders, and GAMG's aggregates (the preconditioner of the Newton steps'
     CG) follow the partition. With the CG converged to rounding (-ssn_ksp_rtol 1e-14) the
     two runs then take the same steps and differ by rounding (about 1e-15 measured); with
     the fast mode's own inexact CG (rtol 1e-3) they differ by the loops' tolerances
     instead (4e-8 measured on the pressure), which this bound would rightly reject as
     "not the same computation"."""
-    one = _datasets(os.path.join(runs[1], "solution.h5"))
-    two = _datasets(os.path.join(runs[2], "solution.h5"))
+    one = _datasets(os.path.join(runs[scene, 1], "solution.h5"))
+    two = _datasets(os.path.join(runs[scene, 2], "solution.h5"))
     assert sorted(two) == sorted(one)
-    assert {"/mesh/coordinates", "/fields/displacement", "/contact/pressure"} <= set(one)
+    assert {"/mesh/coordinates", "/fields/displacement", "/contact/pressure",
+            "/fields/von_mises", "/cells/stress", "/contact/traction"} <= set(one)
     for name, a in one.items():
         b = two[name]
         assert (b.shape, b.dtype) == (a.shape, a.dtype), name
-        if name in ("/mesh/coordinates", "/mesh/topology", "/contact/coordinates",
-                    "/contact/status") or a.dtype.kind in "iu":
+        if name.endswith(("/coordinates", "/topology", "/status", "/load_factor")) or \
+                a.dtype.kind in "iu":
             assert np.array_equal(a, b), name
         else:
-            scale = np.abs(a).max()
+            scale = _scale(one, name)
             assert scale > 0, name                           # not a vacuous comparison
             assert np.abs(b - a).max() <= 1e-10 * scale, name
     status = one["/contact/status"]
     assert {1, 2} <= set(np.unique(status))                  # stick and slip both present
+
+
+def test_readme_lists_every_dataset():
+    """The README's table of solution.h5 is output.dataset_table() (the datasets as
+    output.py lists them)."""
+    with open(os.path.join(ROOT, "README.md")) as f:
+        assert output.dataset_table() in f.read()
+
+
+def test_an_interrupted_or_failed_write_leaves_no_file(comm, mpi_tmp_path, monkeypatch):
+    """All files or none: an interrupt after solution.h5 is complete (under its temporary
+    name), or an error on rank 0 while the figures are drawn, leaves an empty directory
+    on every rank count (and one clear error on every rank)."""
+    from mpi4py import MPI
+
+    from contact import figures, report
+    from conftest import paper_scene, solve
+    pr = solve(paper_scene(nd=1, uzawa_r=1e6, mode="fast"), comm)
+    s = report.summary(pr, 0.0)
+    dirs = [os.path.join(mpi_tmp_path, d) for d in ("interrupted", "failed")]
+    for d in dirs:
+        output.prepare_dir(MPI.COMM_WORLD, d)
+    real = output.write_hdf5
+
+    def interrupted(*args):
+        real(*args)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(output, "write_hdf5", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        output.write_results(pr, dirs[0], s, output.FORMATS)
+    monkeypatch.setattr(output, "write_hdf5", real)
+
+    def full(*args):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(figures, "write_all", full)           # rank 0 draws
+    with pytest.raises(OSError, match="cannot write results to .*No space left on device"):
+        output.write_results(pr, dirs[1], s, output.FORMATS)
+    MPI.COMM_WORLD.barrier()
+    for d in dirs:
+        assert os.listdir(d) == [], d

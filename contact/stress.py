@@ -1,0 +1,211 @@
+"""What a solution means to an engineer: the stress in the body and the contact tractions.
+
+Stress (Q1, sigma = lambda tr(eps) I + 2 mu eps, eps = sym grad u), components in the
+order of VTK's symmetric tensors (ParaView names them so): xx, yy, zz, xy, yz, xz.
+  per cell   the cell mean of the 2x2x2 Gauss values, weighted by |J| w:
+             int_e sigma dx / |e| by the element's own quadrature (exact for the
+             trilinear field's constant part; a constant stress is reproduced exactly);
+  per node   the volume-weighted average of the adjacent cells' means,
+             sum_e |e| sigma_e / sum_e |e| over the cells holding the node;
+  von Mises  sqrt(((s_xx-s_yy)^2 + (s_yy-s_zz)^2 + (s_zz-s_xx)^2)/2 + 3 (s_xy^2+s_yz^2+s_xz^2))
+             of the cell mean (per cell) and of the nodal average (per node).
+Shape-function gradients are fem.py's (`fem._geometry`); all cells at once (NumPy over
+chunks of fem.CHUNK cells).
+
+Contact (per owned contact node j, from the reaction R = A u - b of residuals.py; in x, y, z):
+  traction         t_j = R_j / w_j, the force per area of the foundation on the body
+  normal_traction  t_j . n = g_j (residuals.tractions), the pressure from the reaction
+  pressure         l_j, the loops' multiplier (equal to g_j to the loops' tolerance)
+  friction         |sigma_tau,j|, the friction force per area
+  friction_use     |sigma_tau,j| / (F_j g_j) in contact with F_j > 0 (1: at the Coulomb
+                   bound, slipping), else 0
+  slip             |du_tau| of the last load increment (the whole u for a static run)
+  status           0 separated (l_j = 0), 1 stick, 2 slip (slip > 1e-6 max |du|)
+  normal_displacement      -u_nu = u . n (> 0: away from the foundation)
+  tangential_displacement  |u_tau| of the whole displacement
+Resultants: sum_j R_j (in x, y, z), its normal part N = n . sum_j R_j and tangential part;
+areas: sum_j w_j over the contact nodes of each status.
+"""
+import weakref
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem, residuals as res
+from .frame import basis
+
+#: stress components, in this order (VTK's symmetric tensor order)
+COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
+_I, _J = np.array([0, 1, 2, 0, 1, 0]), np.array([0, 1, 2, 1, 2, 2])
+STATUS = ("separated", "stick", "slip")
+
+
+def von_mises(s):
+    """von Mises stress of stresses s (..., 6) in COMPONENTS order."""
+    return np.sqrt(0.5 * ((s[..., 0] - s[..., 1]) ** 2 + (s[..., 1] - s[..., 2]) ** 2
+                          + (s[..., 2] - s[..., 0]) ** 2)
+                   + 3.0 * (s[..., 3] ** 2 + s[..., 4] ** 2 + s[..., 5] ** 2))
+
+
+def cell_stress(X, U, lam, mu):
+    """Cell-mean Cauchy stress (c, 6) and volumes (c,) of cells X (c, 8, 3) with nodal
+    displacements U (c, 8, 3): the 2x2x2 Gauss values averaged with weights |J| w."""
+    dNdx, wdet = fem._geometry(X)
+    vol = wdet.sum(axis=1)
+    H = np.einsum("cai,cgaj,cg->cij", U, dNdx, wdet) / vol[:, None, None]   # mean grad u
+    eps = 0.5 * (H + H.transpose(0, 2, 1))
+    sig = 2.0 * mu * eps
+    sig[:, [0, 1, 2], [0, 1, 2]] += lam * np.trace(eps, axis1=1, axis2=2)[:, None]
+    return sig[:, _I, _J], vol
+
+
+def local_values(dm, owned):
+    """(nv, 3) values at the local (owned + ghost) vertices of owned (n, 3) values."""
+    g = dm.createGlobalVec()
+    g.setArray(np.ascontiguousarray(owned, dtype=float).ravel())
+    lvec = dm.getLocalVec()
+    dm.globalToLocal(g, lvec, addv=PETSc.InsertMode.INSERT_VALUES)
+    out = lvec.getArray(readonly=True).reshape(-1, 3).copy()
+    dm.restoreLocalVec(lvec)
+    g.destroy()
+    return out
+
+
+def owned_sum(dm, local):
+    """Owned (n, k) sums over ranks of local (nv, k) vertex values (k <= 3 per pass)."""
+    k = local.shape[1]
+    out = []
+    for c in range(0, k, 3):
+        part = np.zeros((local.shape[0], 3))
+        part[:, :min(3, k - c)] = local[:, c:c + 3]
+        g = fem.local_to_global(dm, part.ravel())
+        out.append(g.getArray(readonly=True).reshape(-1, 3)[:, :min(3, k - c)].copy())
+        g.destroy()
+    return np.hstack(out)
+
+
+def body_stress(problem, u=None):
+    """Stress of the displacement u (a global Vec in x, y, z; default the solution's):
+    dict of cell (nc, 6), cell_von_mises, volume, centroid (nc, 3) for the local cells,
+    and nodal (n, 6), nodal_von_mises for the owned nodes."""
+    u = problem.displacement() if u is None else u
+    dm, conn, coords = problem.dm, problem.conn, problem.coords
+    ul = local_values(dm, u.getArray(readonly=True).reshape(-1, 3))
+    mat = problem.scene["material"]
+    lam, mu = fem.lame(mat["young"], mat["poisson"])
+    nc = conn.shape[0]
+    s, vol = np.zeros((nc, 6)), np.zeros(nc)
+    for a in range(0, nc, fem.CHUNK):
+        c = conn[a:a + fem.CHUNK]
+        s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
+    acc = np.zeros((coords.shape[0], 7))
+    np.add.at(acc, conn.ravel(), np.repeat(np.column_stack([s * vol[:, None], vol]), 8,
+                                           axis=0))
+    tot = owned_sum(dm, acc)
+    nodal = tot[:, :6] / np.maximum(tot[:, 6:], 1e-300)
+    return {"cell": s, "cell_von_mises": von_mises(s), "volume": vol,
+            "centroid": coords[conn].mean(axis=1) if nc else np.zeros((0, 3)),
+            "nodal": nodal, "nodal_von_mises": von_mises(nodal)}
+
+
+def peak(comm, values, where):
+    """(max value, its location) over ranks; ties go to the lower rank."""
+    i = int(np.argmax(values)) if values.size else -1
+    mine = (float(values[i]), [float(c) for c in where[i]]) if i >= 0 else (-np.inf, None)
+    return max(comm.allgather(mine), key=lambda p: p[0])
+
+
+def contact_basis(cs):
+    """(3, 3): row c = the direction in x, y, z of the contact-space component c (t1, t2,
+    n), read from the contact set's dofs (the frame's basis off the axes)."""
+    B = basis(cs.normal) if cs.off_axes else np.eye(3)
+    comps = [int(d[0] % 3) for d in cs.dofs] if cs.local_size else [0, 1, 2]
+    return B[comps]
+
+
+def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
+    """Owned contact-node fields (module docstring) of the reaction A x - b (default the
+    solution's x and load), the displacement u (default x) and the slip of `slip`
+    (default the last increment's, else u), all in the loops' basis."""
+    cs = problem.cs
+    comm = problem.comm.tompi4py()
+    x = problem.x if x is None else x
+    u = x if u is None else u
+    if slip is None:
+        slip = problem.last_increment if problem.last_increment is not None else u
+    f = res.contact_fields(problem, x, b, gap)
+    g, sig_t = res.tractions(f)
+    D = contact_basis(cs)
+    comps = {id(x): f["u"]}                     # contact components of each Vec, once
+    for v in (u, slip):
+        if id(v) not in comps:
+            comps[id(v)] = res.contact_fields(problem, v)["u"]
+    uc, sc = comps[id(u)], comps[id(slip)]
+    slip_norm = np.linalg.norm(sc[:, :2], axis=1)
+    scale = res.max_displacement(comm, slip)
+    pressure = f["l"]
+    status = np.where(pressure > 0.0, np.where(slip_norm > 1e-6 * max(scale, 1e-300), 2, 1), 0)
+    friction = np.linalg.norm(sig_t, axis=1)
+    bound = f["F"] * g
+    use = np.zeros_like(friction)
+    ok = (status > 0) & (bound > 0.0)
+    use[ok] = friction[ok] / bound[ok]
+    traction = np.column_stack([sig_t, g]) @ D
+    return {"coordinates": cs.coordinates, "pressure": pressure, "slip": slip_norm,
+            "status": status.astype(np.int32), "traction": traction, "normal_traction": g,
+            "friction": friction, "friction_use": use,
+            "normal_displacement": uc[:, 2], "tangential_displacement":
+            np.linalg.norm(uc[:, :2], axis=1), "w": f["w"], "F": f["F"]}
+
+
+def resultants(comm, state, normal):
+    """Resultant contact force (x, y, z), its normal and tangential parts, and the
+    contact, stick and slip areas, summed over ranks (dict, JSON-ready)."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    force = comm.allreduce((state["traction"] * state["w"][:, None]).sum(axis=0))
+    N = float(force @ n)
+    tang = force - N * n
+    areas = np.array([state["w"][state["status"] == k].sum() for k in range(3)])
+    areas = comm.allreduce(areas)
+    return {"force": [float(c) for c in force], "normal": N,
+            "tangential": float(np.linalg.norm(tang)),
+            "tangential_force": [float(c) for c in tang],
+            "area": {"contact": float(areas[1] + areas[2]), "stick": float(areas[1]),
+                     "slip": float(areas[2]), "separated": float(areas[0])}}
+
+
+_CACHE = weakref.WeakKeyDictionary()
+
+
+def final(problem):
+    """{'body': body_stress, 'contact': contact_state or None} of the solution, computed
+    once per solution (summary.json and the files use the same)."""
+    key = (id(problem.x), problem.x.stateGet(),
+           None if problem.l is None else (id(problem.l), problem.l.stateGet()))
+    hit = _CACHE.get(problem)
+    if hit is None or hit[0] != key:
+        cs = problem.cs
+        state = {"body": body_stress(problem),
+                 "contact": contact_state(problem) if cs is not None and cs.size else None}
+        hit = _CACHE[problem] = (key, state)
+    return hit[1]
+
+
+def summary(problem):
+    """summary.json's additions: `contact_result` (resultant, areas; null without
+    contact nodes), `contact_result_steps` (per load increment) and `von_mises_max`
+    (the largest cell value and the centroid of its cell)."""
+    comm = problem.comm.tompi4py()
+    st = final(problem)
+    body = st["body"]
+    value, where = peak(comm, body["cell_von_mises"], body["centroid"])
+    out = {"contact_result": (resultants(comm, st["contact"], problem.normal)
+                              if st["contact"] is not None else None),
+           "von_mises_max": {"value": value if np.isfinite(value) else None,
+                             "location": where,
+                             "of": "cell mean stress; location: the cell's centroid"}}
+    steps = getattr(problem, "increments", None)
+    if steps:
+        out["contact_result_steps"] = [{"load_factor": s["t"], **s["resultant"]}
+                                       for s in steps]
+    return out
