@@ -209,3 +209,17 @@ def test_petsc_gpu_script():
     for cmd in ("fetch DIR", "build DIR PREFIX", "check PREFIX", "measure PREFIX"):
         assert cmd in p.stdout
     assert subprocess.run(["bash", path], capture_output=True).returncode == 2
+
+
+def test_alart_curnier_prototype():
+    """runs/alart_curnier.py (the whole-problem Newton prototype) at Nd = 2: converges in a
+    few Newton steps to the package's answer (fast mode at tolerances 1e-11), and meets the
+    contact conditions checked by contact/residuals.py."""
+    out, _ = script("alart_curnier.py", "--smoke", timeout=120)
+    steps = int(re.search(r"Alart-Curnier Newton (\d+) steps", out).group(1))
+    assert 2 <= steps <= 15
+    u, p = (float(v) for v in re.search(r"difference: u (\S+), pressure (\S+) ", out).groups())
+    assert u < 1e-9 and p < 1e-9
+    worst = max(float(v) for v in re.findall(r"(?:penetration|complementarity|coulomb) ([^,\s]+)",
+                                              out))
+    assert worst < 1e-8
