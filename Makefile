@@ -16,6 +16,17 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 
+# $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
+# only when one is missing)
+apt_ensure = missing=""; for p in $(1); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends $$missing; \
+	fi
+
 .PHONY: install run run2 test test1 test2 bench report stability validate clean help view
 
 help:
@@ -33,14 +44,7 @@ help:
 install: $(STAMP)
 
 $(STAMP): setup.py Makefile
-	@missing=""; for p in $(DEB_PKGS); do \
-	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
-	done; \
-	if [ -n "$$missing" ]; then \
-	  echo "installing Debian packages:$$missing"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	    --no-install-recommends $$missing; \
-	fi
+	@$(call apt_ensure,$(DEB_PKGS))
 	@test -x $(PY) || $(SYSPY) -m venv --system-site-packages $(VENV)
 	@# Debian's petsc4py lives under PETSc's own tree; its .pth needs the petsc-dev
 	@# alternative, which we do not need, so point the venv at it directly.
@@ -70,14 +74,7 @@ PV_PKGS  := paraview python3-paraview xvfb xauth
 VIEW_DIR ?= $(patsubst %/solution.xdmf,%,$(firstword $(shell ls -t runs/out/*/solution.xdmf 2>/dev/null)))
 
 view:
-	@missing=""; for p in $(PV_PKGS); do \
-	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
-	done; \
-	if [ -n "$$missing" ]; then \
-	  echo "installing Debian packages:$$missing"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
-	    --no-install-recommends $$missing; \
-	fi
+	@$(call apt_ensure,$(PV_PKGS))
 	@test -n "$(VIEW_DIR)" && test -f "$(VIEW_DIR)/solution.xdmf" || \
 	  { echo "make view: no solution.xdmf (make run first, or VIEW_DIR=DIR)"; exit 1; }
 	@auth=$$(mktemp); xvfb-run -a -f $$auth -s "-screen 0 1280x1024x24" \

@@ -51,6 +51,16 @@ def power_iteration(apply, template, its):
     return lam
 
 
+def penalty_increment(S, P, D, c, E, T, zero):
+    """E <- (S + c D)^+ - S^+ = max(c D + min(S, 0), -S^+), accurate for small c D (no
+    cancellation of two penalties); P = S^+ given, T work (contact Vecs)."""
+    T.pointwiseMin(S, zero)
+    T.axpy(c, D)
+    E.waxpy(-2.0, P, P)                                # -S^+
+    E.pointwiseMax(T, E)
+    return E
+
+
 class Change:
     """Theta(x + t d) - Theta(x) as a function of t for one x and direction d (module doc):
     the scalars and contact-space Vecs of x and d are gathered once, each t costs a few
@@ -80,11 +90,8 @@ class Change:
         if cs.size:
             S, d3, a1, a2, e1, e2, na, E, P, T = sub._change_work()
             C, U, V = sub._change_extra()
-            # penalty: E = max(D + min(S, 0), -S^+), D = -r t d3
-            T.pointwiseMin(S, cs.zero)
-            T.axpy(-sub.r * t, d3)
-            E.waxpy(-2.0, P, P)                        # -S^+
-            E.pointwiseMax(T, E)
+            # penalty: w/(2r) E (E + 2 S^+), D = -r t d3
+            penalty_increment(S, P, d3, -sub.r * t, E, T, cs.zero)
             T.waxpy(2.0, P, E)                         # E + 2 S^+
             T.pointwiseMult(T, E)
             T.pointwiseMult(T, cs.w)
@@ -283,11 +290,8 @@ class Subproblem:
         D, E, P, T, C = self._bregman
         cs.gather(dd, D, 2)
         D.scale(-self.r)
-        T.pointwiseMin(S, cs.zero)
-        T.axpy(1.0, D)                                 # D + S^-
         P.pointwiseMax(S, cs.zero)
-        E.waxpy(-2.0, P, P)
-        E.pointwiseMax(T, E)                           # E = (S + D)^+ - S^+
+        penalty_increment(S, P, D, 1.0, E, T, cs.zero)
         C.waxpy(1.0, S, D)
         C.scale(-1.0)
         C.pointwiseMax(C, cs.zero)                     # (-(S + D))^+
