@@ -159,18 +159,14 @@ class APG(Loop):
         self.sub.gradient(self.y, self.grad, Ay, S)
 
     def _step(self, y, alpha, xnew):
-        """xnew = prox(y - alpha grad): a scalar step, or the diagonal metric's."""
-        sub, grad = self.sub, self.grad
+        """xnew = prox(y - alpha grad): the scalar step alpha, or the diagonal metric's."""
         if self.metric == "diagonal":
-            _, alpha_v, _ = self.diagonal_metric()
-            xnew.pointwiseMult(alpha_v, grad)
+            xnew.pointwiseMult(self.diagonal_metric()[1], self.grad)
             xnew.aypx(-1.0, y)                             # y - D^-1 grad
-            if sub.has_prox:
-                sub.prox(xnew, self.thr)
         else:
-            xnew.waxpy(-alpha, grad, y)
-            if sub.has_prox:
-                sub.prox(xnew, self.thr)
+            xnew.waxpy(-alpha, self.grad, y)
+        if self.sub.has_prox:
+            self.sub.prox(xnew, self.thr)
 
     def _gradient_restart(self, y, xnew, d):
         """O'Donoghue-Candes gradient test <D (y - x^i), x^i - x^(i-1)> > 0 (grad is free)."""
@@ -203,11 +199,8 @@ class APG(Loop):
 
     def _solve_y(self, x, alpha):
         """The paper's loop (one MatMult A y per iteration), fixed step, scalar or diagonal
-        metric, restart none or gradient. (The hot loop: its calls are bound once.)"""
-        xnew, d, y, grad, thr = self.xnew, self.d, self.y, self.grad, self.thr
-        gradient = self.sub.gradient
-        prox = self.sub.prox if self.sub.has_prox else None
-        alpha_v = self.diagonal_metric()[1] if self.metric == "diagonal" else None
+        metric, restart none or gradient."""
+        xnew, d, y, grad = self.xnew, self.d, self.y, self.grad
         d.set(0.0)                                         # x^(0) = x^(-1)
         _EV_ITER.begin()
         it, k, reason = 0, 0, None           # k: momentum counter (= it without restarts)
@@ -217,14 +210,8 @@ class APG(Loop):
             k += 1
             beta = (k - 2.0) / (k + 1.0)
             y.waxpy(beta, d, x)                            # y = x + beta (x - x_prev)
-            gradient(y, grad)
-            if alpha_v is None:
-                xnew.waxpy(-alpha, grad, y)                # y - alpha grad
-            else:
-                xnew.pointwiseMult(alpha_v, grad)
-                xnew.aypx(-1.0, y)                         # y - D^-1 grad
-            if prox is not None:
-                prox(xnew, thr)
+            self.sub.gradient(y, grad)
+            self._step(y, alpha, xnew)
             d.waxpy(-1.0, x, xnew)                         # x^i - x^(i-1)
             if restart and self._gradient_restart(y, xnew, d):
                 k = 1                                      # next step: beta = 0
