@@ -17,6 +17,7 @@ from petsc4py import PETSc
 
 from . import fem, options, output, residuals as res, transfer
 from .apg import APG
+from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
 from .fixedpoint import FixedPoint
 from .loop import ResidualCheckError
@@ -24,8 +25,11 @@ from .newton import SemismoothNewton
 from .scene import ramp_factor
 from .uzawa import Uzawa
 
-#: option presets; "fast" = semismooth Newton inner solver, warm starts, inexact loops
+#: option presets; "newton" = the whole-problem semismooth Newton (contact/coulomb.py, no
+#: nested loops); "faithful" = the paper's loops; "fast" = the loops with the semismooth
+#: Newton inner solver, warm starts, inexact loops
 SOLVER_MODES = {
+    "newton": {},
     "faithful": {},
     "fast": {"uzawa_inner": "ssn", "fp_warm_start": "xl", "uzawa_inexact": "0.1",
              "fp_inexact": "0.1", "ssn_pc_lag": "5", "ssn_ksp_rtol": "1e-3",
@@ -68,6 +72,25 @@ class Loops:
         return self.fp.g
 
 
+class NewtonLoops:
+    """The default mode: one semismooth Newton iteration on the whole Coulomb problem
+    (contact/coulomb.py) in place of the three loops; its multiplier is the reaction."""
+
+    fp = uzawa = None
+
+    def __init__(self, disc, b, gap):
+        self.cs = disc.cs
+        self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale)
+        self.inner.set_from_options(disc.scene)
+        self.inner.set_load(b, gap)
+
+    def solve(self, x, l, g0):
+        """x in place (from its start), l <- the pressure R_n / w; returns g = l (F > 0)."""
+        self.inner.solve(x)
+        self.inner.pressure(x, l)
+        return l.copy() if self.cs.has_friction else None
+
+
 def solve(pr):
     """Run what the scene needs on the problem `pr` (problem.py); sets its solution."""
     steps = int(pr.scene.get("loading", {}).get("steps", 1))
@@ -102,17 +125,24 @@ def solve_contact(pr, b, gap, start=None, g0=None):
     """One static contact solve for load b and gap: pr.x, pr.l, pr.g set; start: (l0, g0)
     of a coarse-to-fine start; g0: the fixed point's start (the increment before)."""
     pr.solver_mode = solver_mode(pr.scene)
+    newton = pr.solver_mode == "newton"
     with options.inserted(SOLVER_MODES[pr.solver_mode]):
-        loops = Loops(pr.disc, b, gap)
+        loops = (NewtonLoops if newton else Loops)(pr.disc, b, gap)
         pr.loops = loops
         cs = pr.cs
         pr.l = cs.vec()
         if start is not None:
             start[0].copy(pr.l)
             g0 = start[1]
-        if cs.has_friction and g0 is None and pr.friction_held is not None:
+        if cs.has_friction and g0 is None and pr.friction_held is not None and not newton:
             g0 = normal_pressure(pr, loops, b, gap)
-        if not cs.has_friction:
+        if newton:
+            note = ("the paper's fixed-point, Uzawa and inner loops (-solver_mode newton: "
+                    "one Newton iteration on the whole problem; -solver_mode faithful: the "
+                    "paper's)")
+            if note not in pr.skipped:
+                pr.skipped.append(note)
+        elif not cs.has_friction:
             note = "fixed-point loop and prox (F = 0)"
             if note not in pr.skipped:
                 pr.skipped.append(note)
@@ -173,12 +203,27 @@ def check_solution(pr, b, gap):
     if tol > 0 and not value <= tol and pr.converged:
         pr.check_passed = False
         inner = pr.loops.inner
+        if pr.loops.uzawa is None:
+            raise ResidualCheckError(
+                f"solution check failed: the Newton iteration stopped, but the {worst} "
+                f"residual is {value:.2e} > {tol:g} (-check_tol): try a tighter "
+                f"-newton_rtol, or -solver_mode faithful")
         raise ResidualCheckError(
             f"solution check failed: the loops stopped, but the {worst} residual is "
             f"{value:.2e} > {tol:g} (-check_tol); with r = {pr.loops.uzawa.r:g} the "
             f"{inner.title} steps may be too short to move: try a smaller "
             f"-uzawa_r or tighter -{inner.prefix}rtol / -uzawa_rtol")
     pr.check_passed = bool(value <= tol) if tol > 0 else None
+
+
+def auto_levels(nd):
+    """-c2f_levels -1 in the newton mode: halve Nd while the coarser mesh has Nd >= 4 (the
+    Newton steps on the finest mesh then start from nearly the right contact and slip sets)."""
+    levels = 0
+    while nd // 2 >= 4:
+        nd //= 2
+        levels += 1
+    return levels
 
 
 def coarse_start(pr):
@@ -189,8 +234,10 @@ def coarse_start(pr):
     levels = pr.c2f_levels
     if levels is None:
         levels = options.get("c2f_levels", pr.scene)
-    if levels < 0:
-        raise ValueError(f"-c2f_levels must be >= 0, got {levels}")
+    if levels < -1:
+        raise ValueError(f"-c2f_levels must be >= -1 (-1: automatic), got {levels}")
+    if levels == -1:
+        levels = auto_levels(pr.nd) if solver_mode(pr.scene) == "newton" else 0
     if levels == 0 or pr.nd < 2 or pr.scene["mesh"].get("type", "box") != "box" \
             or pr.scene.get("loading", {}).get("steps", 1) > 1:
         return None

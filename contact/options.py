@@ -36,7 +36,8 @@ class Option(NamedTuple):
 
 #: the prefixes of our loops, their titles and their own defaults of the common options
 LOOP_PREFIXES = {"fp_": ("FixedPoint", 1e-6, 100), "uzawa_": ("Uzawa", 1e-6, 1000),
-                 "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100)}
+                 "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100),
+                 "newton_": ("Newton", 1e-9, 60)}
 #: options every loop reads under its prefix P
 COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate"),
           ("max_it", int, "N", "iteration limit"),
@@ -80,9 +81,10 @@ REGISTRY = [
            "exceeds F N (statics of a rigid block)", "BOOL"),
     Option("solver_mode", "faithful", str, "faithful: the paper's loops; fast: the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",
-           "faithful|fast", ("solver", "mode")),
-    Option("c2f_levels", 0, int, "coarse-to-fine: solve at Nd/2 (from Nd/4, ...) first and "
-           "start from the interpolated x, l, g (box meshes)", "N", ("solver", "c2f_levels")),
+           "newton|faithful|fast", ("solver", "mode")),
+    Option("c2f_levels", -1, int, "coarse-to-fine: solve at Nd/2 (from Nd/4, ...) first and "
+           "start from the interpolated x, l, g (box meshes); -1: automatic (newton mode: "
+           "halve while Nd/2 >= 4; the loops: 0)", "N", ("solver", "c2f_levels")),
     Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
     Option("debug", False, bool, "show the traceback of an error", ""),
     Option("help", None, bool, "this list", ""),
@@ -131,6 +133,17 @@ REGISTRY = [
            "slip sets do not change", "BOOL"),
     Option("ssn_pc_lag", 1, int, "keep the preconditioner for N steps after each set-up",
            "N"),
+    Option("newton_ew", True, bool, "Eisenstat-Walker forcing terms for the Newton steps' "
+           "linear solves (false: each to -newton_ksp_rtol)", "BOOL"),
+    Option("newton_ew_max", 0.1, float, "largest forcing term (the loosest linear solve)",
+           "ETA"),
+    Option("newton_pc_reuse", True, bool, "keep the preconditioner from step to step "
+           "(the Jacobian changes only in its contact rows)", "BOOL"),
+    Option("newton_pc_rebuild_its", 40, int, "with -newton_pc_reuse: build a new "
+           "preconditioner after a linear solve of more than N iterations (and after a "
+           "failed one)", "N"),
+    Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
+           "line search on the residual norm (taken if nothing longer decreases it)", "T"),
 ]
 BY_NAME = {o.name: o for o in REGISTRY}
 #: the scene options with a name of their own (-nd, -friction, ...) and their scene paths
@@ -150,9 +163,11 @@ PETSC_GLOBAL = ("log_view", "options_left", "malloc_debug", "malloc_dump", "info
 #: read by PETSc only when it finalizes (so still unused at the end of a run)
 PETSC_AT_EXIT = ("log_view", "options_left", "malloc_dump", "malloc_debug", "log_trace",
                  "memory_view", "objects_dump", "check_pointer_intensity")
-#: PETSc objects configured under the -ssn_ prefix (their options are PETSc's to check)
+#: PETSc objects configured under the -ssn_ and -newton_ prefixes (their options are
+#: PETSc's to check)
 PETSC_UNDER_SSN = ("ksp_", "pc_", "mg_", "sub_", "mat_", "gamg_")
-OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "c2f_", "solver_", "scene_")
+KSP_PREFIXES = ("ssn_", "newton_")
+OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "newton_", "c2f_", "solver_", "scene_")
 #: prefixes of PETSc's own objects and options: never checked against our names
 PETSC_PREFIXES = ("ksp_", "pc_", "mg_", "mat_", "vec_", "dm_", "sub_", "snes_", "ts_",
                   "tao_", "log_", "malloc", "options_", "info", "viewer_", "draw_",
@@ -219,16 +234,17 @@ def known(scene=None):
 
 
 def _petsc(name):
-    """PETSc's option: under a PETSc prefix, or a PETSc object's under -ssn_."""
-    return name.startswith(PETSC_PREFIXES) or (name.startswith("ssn_") and not _ours(name))
+    """PETSc's option: under a PETSc prefix, or a PETSc object's under -ssn_ / -newton_."""
+    return name.startswith(PETSC_PREFIXES) or (name.startswith(KSP_PREFIXES) and
+                                               not _ours(name))
 
 
 def _ours(name):
     if not name.startswith(OWN_PREFIXES):
         return False
-    if name.startswith("ssn_"):
-        rest = name[len("ssn_"):]
-        return not rest.startswith(PETSC_UNDER_SSN) or name in BY_NAME
+    for p in KSP_PREFIXES:
+        if name.startswith(p):
+            return not name[len(p):].startswith(PETSC_UNDER_SSN) or name in BY_NAME
     return True
 
 

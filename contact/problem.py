@@ -114,11 +114,11 @@ class ContactProblem:
                     "inner_first": 0, "inner_total": 0, "apg_first": 0, "apg_total": 0,
                     "ksp_total": self.ksp_iterations}
         fp = self.fp.iterations if self.fp is not None else 0
-        uz = self.uzawa.total_iterations
+        uz = self.uzawa.total_iterations if self.uzawa is not None else 0
         inn = self.inner
         apg = self.apg is not None
         return {"fixed_point": fp, "uzawa_total": uz,
-                "uzawa_mean": uz / max(self.uzawa.calls, 1),
+                "uzawa_mean": uz / max(self.uzawa.calls, 1) if uz else 0.0,
                 "inner": inn.name, "inner_first": inn.first_iterations or 0,
                 "inner_total": inn.total_iterations,
                 "apg_first": (inn.first_iterations or 0) if apg else 0,

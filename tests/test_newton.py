@@ -88,7 +88,7 @@ def test_linear_solver_failure_names_the_loop(comm):
 
 @pytest.mark.parametrize("opt,val,msg", [
     ("uzawa_inner", "cg", "-uzawa_inner must be one of apg, ssn"),
-    ("solver_mode", "quick", "-solver_mode must be one of faithful, fast"),
+    ("solver_mode", "quick", "-solver_mode must be one of newton, faithful, fast"),
     ("fp_warm_start", "u", "-fp_warm_start must be none, x or xl"),
     ("uzawa_inexact", "2", r"-uzawa_inexact must be in \[0, 1\)"),
 ])

@@ -1,0 +1,326 @@
+"""Semismooth Newton on the whole discrete Coulomb problem (Alart-Curnier): the default solver.
+
+The paper's three loops (fixed point on g > Uzawa on l > inner solver on x) converge to the
+x with the contact reaction R = A x - b whose nodal tractions l_n = R_n / w (the pressure)
+and l_t = R_t / w (the friction traction) satisfy, at every contact node j (rho_j > 0),
+    l_n = max(0, a_n),              a_n = l_n - rho h,        h = x_n + gap  (>= 0: open)
+    l_t = P_B(F a_n^+)(z),          z   = l_t - rho x_t       (P_B(s): projection on |.| <= s)
+(Signorini, and Coulomb with the slip bound F g at its fixed point g = l_n). Here the
+multipliers are the reaction itself (eliminated), so the unknown is x alone and the residual
+is, in force units (w times the conditions above; R_i on every other dof):
+    inactive (a_n < 0)                  R_n,            R_t                    (free)
+    active, stick (|z| <= F a_n, F > 0) w rho h,        w rho x_t              (held)
+    active, slip                        w rho h,        R_t - w F a_n z/|z|
+Each Newton step solves the generalized Jacobian: rows of A, Dirichlet rows (dx_n = -h on
+active nodes, dx_t = -x_t on stick nodes, eliminated symmetrically), and at slip nodes,
+with c = F a_n / |z| in [0, 1), n = z/|z| and P = I - n n^T, the rows multiplied by
+(I - c P)^-1 = I + c/(1-c) P:
+    A_t - F n A_n + w rho c/(1-c) P (on x_t) + w F rho n (on x_n)
+(nonsymmetric through F n A_n: GMRES, right-preconditioned, with GAMG; options prefix
+-newton_). A backtracking line search on the residual norm globalises the step (the full
+step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)||.
+The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew); GAMG keeps its
+interpolation after the first set-up (-newton_pc_gamg_reuse_interpolation, default true
+here) and only recomputes the Galerkin products, since the Jacobian has A's nonzero pattern.
+Host work per step: the contact nodes' arrays and the slip rows (small); the Jacobian is a
+copy of A with those rows replaced, built on the host; vectors are Vec operations.
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import options
+from .loop import CONVERGED_RTOL, CONVERGED_ZERO, DIVERGED_MAX_IT, Loop
+
+_EV_ITER = PETSc.Log.Event("Newton iterations")
+_EV_KSP = PETSc.Log.Event("Newton linear solve")
+_EV_MAT = PETSc.Log.Event("Newton assemble")
+_EV_RES = PETSc.Log.Event("Newton residual")
+
+DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
+DIVERGED_LINE_SEARCH = "DIVERGED_LINE_SEARCH"
+INSERT = PETSc.InsertMode.INSERT_VALUES
+
+
+class CoulombNewton(Loop):
+    """Alart-Curnier semismooth Newton on the whole contact problem; options prefix
+    ``-newton_``. A, b: the elasticity matrix (clamped rows eliminated, diagonal
+    `diag_scale`) and load; cs: the contact set; gap: a contact Vec (a load increment's)."""
+
+    prefix = "newton_"
+    title = "Newton"
+    indent = 2
+    name = "newton"
+    hint = ("raise -newton_max_it, or try the paper's loops: -solver_mode faithful "
+            "(or fast)")
+
+    def __init__(self, A, b, cs, clamped, diag_scale):
+        super().__init__(A.getComm())
+        self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
+        self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
+        self.diag_scale = float(diag_scale)
+        self.ksp_iterations = 0
+        self.pc_setups = 0
+        self._rebuild = False
+        self.line_search_cuts = 0
+        self.n_active = self.n_stick = self.n_slip = 0
+        self.K = None
+        self.R, self.r, self.dx, self.xt, self.free = (b.duplicate() for _ in range(5))
+        self.free.set(1.0)
+        self.free.setValues(self.clamped, np.zeros(len(self.clamped)))
+        self.free.assemble()
+        self.c = [cs.vec() for _ in range(3)]
+        self.w = cs.local_array(cs.w)
+        self.F = cs.local_array(cs.F)
+        d = A.getDiagonal()
+        cs.gather(d, self.c[2], 2)
+        self.rho = cs.local_array(self.c[2]) / np.where(self.w > 0, self.w, 1.0)
+        d.destroy()
+        self._contact_rows()
+        self.ksp = PETSc.KSP().create(comm=self.comm)
+        self.ksp.setOptionsPrefix(self.prefix)
+        self.ksp.setType("gmres")
+        self.ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        self.ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        self.ksp.getPC().setType("gamg")
+        self.ksp.setTolerances(rtol=1e-8, atol=0.0, max_it=1000)
+
+    def check_options(self):
+        if not 0.0 < self.ew_max < 1.0:
+            raise ValueError(f"-newton_ew_max must be in (0, 1), got {self.ew_max}")
+        with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
+                               self.prefix + "ksp_gmres_restart": "60"}):
+            self.ksp.setFromOptions()
+        self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
+
+    def set_load(self, b, gap):
+        """The load and gap of the next solves (a load increment's)."""
+        self.b, self.gap = b, gap
+
+    # -- the contact rows of A (host, once) ----------------------------------------------------
+    def _contact_rows(self):
+        """The rows of A at the contact dofs as padded (3, m, W) column and value arrays
+        (padding: column -1, which MatSetValues ignores), and the positions of the node's
+        own three dofs in them. The three rows of a node share their columns (A's block
+        pattern); checked."""
+        cs, A, m = self.cs, self.A, self.cs.local_size
+        rows = np.concatenate(cs.dofs).astype(PETSc.IntType)
+        r0, r1 = A.getOwnershipRange()
+        isr = PETSc.IS().createGeneral(rows, comm=self.comm)
+        isc = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
+        S = A.createSubMatrix(isr, isc)
+        ia, ja, a = S.getValuesCSR()
+        for o in (S, isr, isc):
+            o.destroy()
+        n = np.diff(ia)
+        W = int(n.max()) if n.size else 1
+        pos = np.arange(ja.size) - np.repeat(ia[:-1], n)
+        row = np.repeat(np.arange(n.size), n)
+        cols = np.full((3 * m, W), -1, dtype=PETSc.IntType)
+        vals = np.zeros((3 * m, W))
+        cols[row, pos] = ja
+        vals[row, pos] = a
+        self.cols, self.vals = cols.reshape(3, m, W), vals.reshape(3, m, W)
+        same = np.array_equal(self.cols[0], self.cols[2]) and \
+            np.array_equal(self.cols[1], self.cols[2])
+        if not self.comm.tompi4py().allreduce(same, op=MPI.LAND):
+            raise RuntimeError("the Newton Jacobian needs A's three rows of a contact node "
+                               "to share their columns (A's 3x3 block pattern)")
+        self.own = [np.argmax(self.cols[2] == np.asarray(cs.dofs[k])[:, None], axis=1)
+                    for k in range(3)]
+
+    # -- residual ------------------------------------------------------------------------------
+    def _state(self, x, r):
+        """The sets, slip data and the residual r(x) (into r); returns (||r||, state)."""
+        _EV_RES.begin()
+        cs, c = self.cs, self.c
+        self.A.mult(x, self.R)
+        self.R.axpy(-1.0, self.b)                      # R = A x - b
+        R, X = [], []
+        for k in range(3):
+            cs.gather(self.R, c[k], k)
+            R.append(cs.local_array(c[k]))
+            cs.gather(x, c[k], k)
+            X.append(cs.local_array(c[k]))
+        w, rho, F = self.w, self.rho, self.F
+        h = X[2] + cs.local_array(self.gap)
+        an = R[2] / w - rho * h
+        active = an >= 0.0                             # closed: from x = 0 the face is held
+        bound = F * np.maximum(an, 0.0)
+        z1, z2 = R[0] / w - rho * X[0], R[1] / w - rho * X[1]
+        nz = np.hypot(z1, z2)
+        stick = active & (F > 0.0) & (nz <= bound)
+        slip = active & ~stick
+        ns = np.where(nz > 0.0, nz, 1.0)
+        n1, n2 = np.where(slip, z1 / ns, 0.0), np.where(slip, z2 / ns, 0.0)
+        cc = np.where(slip & (nz > 0.0), bound / ns, 0.0)         # in [0, 1)
+        rn = np.where(active, w * rho * h, R[2])
+        wr = w * rho
+        r1 = np.where(stick, wr * X[0], np.where(slip, R[0] - w * bound * n1, R[0]))
+        r2 = np.where(stick, wr * X[1], np.where(slip, R[1] - w * bound * n2, R[1]))
+        self.R.copy(r)
+        for k, v in enumerate((r1, r2, rn)):
+            c[k].setArray(v)
+            cs.scatter(c[k], r, k)
+        st = dict(active=active, stick=stick, slip=slip, n1=n1, n2=n2, c=cc, h=h, X=X,
+                  r1=r1, r2=r2)
+        _EV_RES.end()
+        return r.norm(), st
+
+    # -- Jacobian ------------------------------------------------------------------------------
+    def _system(self, st):
+        """K (A with the slip rows replaced and the Dirichlet rows eliminated) and the
+        right-hand side -r (slip rows multiplied by (I - cP)^-1) into self.rhs; the
+        Dirichlet values into self.dx."""
+        _EV_MAT.begin()
+        cs, A, c = self.cs, self.A, self.c
+        if self.K is None:
+            self.K = A.duplicate(copy=True)
+            self.K.setNearNullSpace(A.getNearNullSpace())
+            self.rhs = self.b.duplicate()
+        else:
+            A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        K, rhs = self.K, self.rhs
+        self.r.copy(rhs)
+        rhs.scale(-1.0)
+        q = np.flatnonzero(st["slip"])
+        if q.size:
+            w, rho, F = self.w[q], self.rho[q], self.F[q]
+            n = np.stack([st["n1"][q], st["n2"][q]])                   # (2, k)
+            cq = st["c"][q]
+            gam = np.minimum(cq / np.maximum(1.0 - cq, 1e-300), 1e8)   # c / (1 - c), capped
+            j = np.arange(q.size)
+            V = []
+            for k in range(2):
+                v = self.vals[k][q] - (F * n[k])[:, None] * self.vals[2][q]
+                for l_ in range(2):
+                    v[j, self.own[l_][q]] += w * rho * gam * (float(k == l_) - n[k] * n[l_])
+                v[j, self.own[2][q]] += w * F * rho * n[k]
+                V.append(v)
+            rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
+            cols = np.concatenate([self.cols[k][q] for k in range(2)])
+            K.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
+                           np.concatenate(V)[:, None, :], INSERT)
+            # rhs at slip rows: -(I + gam P) r_t = -r_t - gam P r_t
+            r1, r2 = st["r1"][q], st["r2"][q]
+            pr = n[0] * r1 + n[1] * r2
+            for k, rk in enumerate((r1, r2)):
+                t = np.zeros(cs.local_size)
+                t[q] = -gam * (rk - n[k] * pr)
+                c[k].setArray(t)
+                cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
+        K.assemble()
+        # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick), eliminated symmetrically
+        act, stick, X = st["active"], st["stick"], st["X"]
+        rows = np.concatenate([np.asarray(cs.dofs[2])[act], np.asarray(cs.dofs[0])[stick],
+                               np.asarray(cs.dofs[1])[stick]]).astype(PETSc.IntType)
+        vals = np.concatenate([-st["h"][act], -X[0][stick], -X[1][stick]])
+        self.dx.set(0.0)
+        self.dx.setValues(rows, vals)
+        self.dx.assemble()
+        self._dirichlet = (rows, vals)
+        K.zeroRowsColumns(rows, self.diag_scale, self.dx, rhs)
+        _EV_MAT.end()
+        return K, rhs
+
+    def _linear_solve(self, K, rhs, rtol):
+        """dx <- K^-1 rhs to rtol, with the eliminated rows set exactly. The preconditioner
+        is kept from step to step (-newton_pc_reuse: K changes only in its contact rows)
+        until a solve takes more than -newton_pc_rebuild_its iterations (then the next
+        step builds a new one) or fails (then it is built anew and the solve repeated).
+        Returns False when the linear solve failed."""
+        _EV_KSP.begin()
+        self.ksp.setOperators(K)
+        self.ksp.setTolerances(rtol=rtol)
+        for attempt in range(2):
+            reuse = self.pc_reuse and self.pc_setups > 0 and not self._rebuild and attempt == 0
+            self.ksp.getPC().setReusePreconditioner(reuse)
+            if not reuse:
+                self.pc_setups += 1
+            self._rebuild = False
+            self.ksp.solve(rhs, self.dx)
+            its = self.ksp.getIterationNumber()
+            self.ksp_iterations += its
+            ok = self.ksp.getConvergedReason() > 0
+            if ok or not reuse:
+                break
+        if its > self.pc_rebuild_its:
+            self._rebuild = True
+        self.dx.pointwiseMult(self.dx, self.free)         # exact eliminated values
+        self.dx.setValues(*self._dirichlet)
+        self.dx.assemble()
+        _EV_KSP.end()
+        return ok
+
+    # -- solve ---------------------------------------------------------------------------------
+    def solve(self, x, rtol=None):
+        """Solve from the start x (overwritten with the solution)."""
+        self.begin(rtol)
+        _EV_ITER.begin()
+        x0 = x.duplicate()
+        x0.set(0.0)
+        scale, _ = self._state(x0, self.r)               # ||r(0)||: the scale of the test
+        x0.destroy()
+        nr, st = self._state(x, self.r)
+        it, reason, eta, nr_old = 0, None, self.ew_max, None
+        self.residual = nr / scale if scale > 0 else 0.0
+        if scale == 0.0 or nr == 0.0:
+            reason = CONVERGED_ZERO
+        while reason is None:
+            it += 1
+            if self.ew and nr_old is not None:           # Eisenstat-Walker, choice 2
+                e = 0.9 * (nr / nr_old) ** 2
+                if 0.9 * eta ** 2 > 0.1:
+                    e = max(e, 0.9 * eta ** 2)
+                eta = min(self.ew_max, e)
+            elif not self.ew:
+                eta = self.ksp_rtol
+            if self.ew:                 # no need to solve below the final tolerance
+                eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
+            K, rhs = self._system(st)
+            if not self._linear_solve(K, rhs, eta):
+                reason = DIVERGED_LINEAR_SOLVE
+                break
+            # backtracking on ||r||
+            t = 1.0
+            while True:
+                self.xt.waxpy(t, self.dx, x)
+                nr_t, st_t = self._state(self.xt, self.r)
+                if nr_t <= (1.0 - 1e-4 * t) * nr or t <= self.linesearch_min:
+                    break
+                t *= 0.5
+                self.line_search_cuts += 1
+            x.swap(self.xt)
+            nr_old, nr, st = nr, nr_t, st_t
+            self.n_active = int(st["active"].sum())
+            self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
+            reason = self.test(it, nr, scale)
+            self._monitor(it, self.residual, self._sets_text(t))
+        _EV_ITER.end()
+        self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
+        return x
+
+    def pressure(self, x, out):
+        """out <- l_n = R_n / w at x (the contact pressure; the paper's multiplier)."""
+        self.A.mult(x, self.R)
+        self.R.axpy(-1.0, self.b)
+        self.cs.gather(self.R, out, 2)
+        out.pointwiseDivide(out, self.cs.w)
+        return out
+
+    def _sets_text(self, t):
+        s = self.comm.tompi4py().allreduce(np.array([self.n_active, self.n_stick,
+                                                     self.n_slip]))
+        return (f"  (KSP its {self.ksp.getIterationNumber()}, step {t:g}; active {s[0]}, "
+                f"stick {s[1]}, slip {s[2]})")
+
+    def _monitor(self, it, res, extra=""):
+        if self.monitor and (it % self.monitor_stride == 0 or it == 1):
+            self.log(f"{' ' * self.indent}{it:6d} {self.title} residual norm {res:.6e}{extra}")
+
+    def _ksp_hint(self):
+        code = self.ksp.getConvergedReason()
+        name = next((k for k, v in vars(PETSc.KSP.ConvergedReason).items()
+                     if v == code and not k.startswith("_")), str(code))
+        return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
+                f"-newton_ksp_type preonly -newton_pc_type lu, or raise -newton_ksp_max_it")
