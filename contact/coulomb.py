@@ -92,6 +92,8 @@ class CoulombNewton(Loop):
                                self.prefix + "ksp_gmres_restart": "60"}):
             self.ksp.setFromOptions()
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
+        if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
+            self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
 
     def set_load(self, b, gap):
         """The load and gap of the next solves (a load increment's)."""
@@ -168,10 +170,16 @@ class CoulombNewton(Loop):
         return r.norm(), st
 
     # -- Jacobian ------------------------------------------------------------------------------
-    def _system(self, st):
+    def _system(self, st, glued=False):
         """K (A with the slip rows replaced and the Dirichlet rows eliminated) and the
         right-hand side -r (slip rows multiplied by (I - cP)^-1) into self.rhs; the
-        Dirichlet values into self.dx."""
+        Dirichlet values into self.dx. glued: the active nodes with F > 0 all held
+        (dx_t = -x_t): the first step from x = 0, whose slip directions are those of the
+        load alone and may leave nothing to hold a body held by friction alone."""
+        if glued:
+            st = dict(st)
+            st["stick"] = st["active"] & (self.F > 0.0)
+            st["slip"] = st["active"] & ~st["stick"]
         _EV_MAT.begin()
         cs, A, c = self.cs, self.A, self.c
         if self.K is None:
@@ -261,6 +269,7 @@ class CoulombNewton(Loop):
         x0.set(0.0)
         scale, _ = self._state(x0, self.r)               # ||r(0)||: the scale of the test
         x0.destroy()
+        glued = x.norm() == 0.0
         nr, st = self._state(x, self.r)
         it, reason, eta, nr_old = 0, None, self.ew_max, None
         self.residual = nr / scale if scale > 0 else 0.0
@@ -277,7 +286,7 @@ class CoulombNewton(Loop):
                 eta = self.ksp_rtol
             if self.ew:                 # no need to solve below the final tolerance
                 eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
-            K, rhs = self._system(st)
+            K, rhs = self._system(st, glued and it == 1)
             if not self._linear_solve(K, rhs, eta):
                 reason = DIVERGED_LINEAR_SOLVE
                 break
@@ -301,11 +310,20 @@ class CoulombNewton(Loop):
         return x
 
     def pressure(self, x, out):
-        """out <- l_n = R_n / w at x (the contact pressure; the paper's multiplier)."""
+        """out <- l_n = max(0, R_n / w - rho h) at x: the contact pressure (the paper's
+        multiplier), 0 on the nodes the iteration found open (where R_n / w is a rounding
+        residual of either sign)."""
+        cs, c = self.cs, self.c
         self.A.mult(x, self.R)
         self.R.axpy(-1.0, self.b)
-        self.cs.gather(self.R, out, 2)
-        out.pointwiseDivide(out, self.cs.w)
+        cs.gather(self.R, out, 2)
+        out.pointwiseDivide(out, cs.w)
+        cs.gather(x, c[0], 2)
+        c[0].axpy(1.0, self.gap)                           # h = x_n + gap
+        c[1].setArray(self.rho)
+        c[0].pointwiseMult(c[0], c[1])
+        out.axpy(-1.0, c[0])
+        out.pointwiseMax(out, cs.zero)
         return out
 
     def _sets_text(self, t):

@@ -79,7 +79,8 @@ REGISTRY = [
            ("solver", "check_tol")),
     Option("statics_check", True, bool, "refuse a friction-held body whose tangential load "
            "exceeds F N (statics of a rigid block)", "BOOL"),
-    Option("solver_mode", "faithful", str, "faithful: the paper's loops; fast: the preset "
+    Option("solver_mode", "newton", str, "newton: one semismooth Newton iteration on the whole "
+           "problem (default); faithful: the paper's loops; fast: the loops with the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",
            "newton|faithful|fast", ("solver", "mode")),
     Option("c2f_levels", -1, int, "coarse-to-fine: solve at Nd/2 (from Nd/4, ...) first and "

@@ -31,7 +31,7 @@ class ContactProblem:
         self.scene, self.comm = scene, comm or PETSc.COMM_WORLD
         self.c2f_levels = c2f_levels
         self.coarse_runs = []
-        self.solver_mode = "faithful"     # -solver_mode (read when the loops are built)
+        self.solver_mode = "newton"       # -solver_mode (read when the loops are built)
         self.mode = None                  # linear | frictionless | coulomb
         self.loops = None                 # driver.Loops of the last static solve
         self.l = self.g = None

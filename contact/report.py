@@ -78,7 +78,14 @@ def table_line(s):
 
 def print_summary(comm, s, outdir=None):
     r = s["residuals"]
+    how = {"newton": "solver: newton (the default: semismooth Newton on the whole problem; "
+                     "-solver_mode faithful runs the paper's three loops)",
+           "faithful": "solver: faithful (the paper's fixed point > Uzawa > APG)",
+           "fast": "solver: fast (the paper's loops with semismooth Newton inside; "
+                   "-solver_mode faithful: the paper's own)"}
     lines = [header(s), table_line(s),
+             *([how[s["solver_mode"]]] if s["mode"] != "linear" and
+               s["solver_mode"] in how else []),
              f"mode {s['mode']}, ranks {s['ranks']}, "
              f"{s['iterations']['inner'].upper()} total {s['iterations']['inner_total']}, "
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",

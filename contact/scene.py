@@ -36,7 +36,8 @@ SCHEMA = {
     "foundation": ("point", "normal"),
     "loading": ("steps",),
     "solver": ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol", "ssn_rtol", "apg_max_it",
-               "uzawa_max_it", "fp_max_it", "ssn_max_it", "mode", "uzawa_inner",
+               "uzawa_max_it", "fp_max_it", "ssn_max_it", "newton_rtol", "newton_max_it",
+               "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
     "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
 }

@@ -2,15 +2,18 @@
 the results as markdown in runs/results/bench.md.
 
 Parts (--part, default all):
-  table1  the paper's scene at its tolerances, fastest mode (-solver_mode fast), Nd = 10,
-          20, 40: the paper's columns, solve time, peak memory per rank, speed-up against
-          the paper's times (two P100 GPUs) and against our faithful mode where it ran.
-  equal   Nd = 10 side by side: faithful mode vs fast mode, each with its error against a
-          reference solved at tolerance 1e-12 by two variants (SSN + GAMG, SSN + Cholesky).
+  table1  the paper's scene at its tolerances, the default mode (-solver_mode newton) and
+          the loops' fast mode (--modes), Nd = 10, 20, 40 (--nd; 80 with --nd 80): the
+          paper's columns, solve time, peak memory per rank, speed-up against the paper's
+          times (two P100 GPUs).
+  equal   Nd = 10 side by side: faithful, fast and newton modes, each with its error
+          against a reference solved at tolerance 1e-12 by two variants (SSN + GAMG, SSN +
+          Cholesky).
   floor   cost of one APG iteration (-log_view event "APG iterations") against its
           memory-traffic floor (bytes of one MatMult plus the vector passes, divided by the
           bandwidth PETSc's VecWAXPY reaches on this machine).
-  ranks   fast mode on 1 and 2 ranks, Nd = 20 and 40: solve time, speed-up, memory.
+  ranks   the default mode on 1 and 2 ranks, Nd = 20 and 40 (--ranks-nd): solve time,
+          speed-up, memory.
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
 free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
@@ -30,6 +33,9 @@ from contact.validation import harness
 ROOT = harness.ROOT
 PAPER = {nd: p[2:] for nd, p in harness.PAPER_TABLE1.items()}   # APG 1st, Uzawa, FP, time
 FAST = ["-solver_mode", "fast"]
+NEWTON = ["-solver_mode", "newton"]
+FAITHFUL = ["-solver_mode", "faithful"]
+MODES = {"newton": NEWTON, "fast": FAST}
 REF_TOL = ["-uzawa_rtol", "1e-12", "-fp_rtol", "1e-12", "-ssn_rtol", "1e-13"]
 REFS = {"ref-gamg": ["-uzawa_inner", "ssn", "-ssn_ksp_rtol", "1e-12"] + REF_TOL,
         "ref-cholesky": ["-uzawa_inner", "ssn", "-ssn_ksp_type", "preonly",
@@ -59,24 +65,32 @@ def mem(s):
 
 
 def part_table1(args, lines):
-    lines += ["## Table 1, fastest mode (`-solver_mode fast`), paper's tolerances", "",
-              "Command: `python -m contact -nd N -solver_mode fast` (1 rank).", "",
-              "| Nd | n_p | n_d | SSN its (1st Uzawa) | Uzawa its (mean) | FP its | SSN its "
+    lines += ["## Table 1, the paper's tolerances: default mode (newton) and the loops' fast "
+              "mode", "",
+              "Command: `python -m contact -nd N -solver_mode MODE` (1 rank). Iterations: "
+              "newton: Newton steps on the finest mesh (first column) and on all meshes of "
+              "the coarse-to-fine start (total); fast: SSN steps of the first Uzawa run, "
+              "Uzawa mean, fixed point, SSN total.", "",
+              "| Nd | mode | n_p | n_d | inner its (1st) | Uzawa its (mean) | FP its | inner its "
               "(total) | KSP its (total) | solve time, s | setup, s | peak memory / rank, "
               "MiB | paper: APG 1st / Uzawa / FP | paper time, s | speed-up vs paper | "
               "LSE, s | solve / LSE | set-up / LSE |",
-              "|" + "---|" * 17]
+              "|" + "---|" * 18]
     for nd in args.nd:
-        s = run(args, f"fast-nd{nd}", nd, FAST).summary
-        it, t = s["iterations"], s["time_s"]
         unit = lse(args, nd)
-        pa = PAPER.get(nd, ("–",) * 4)
-        sp = f"{pa[3] / t['solve']:.0f}x" if nd in PAPER else "–"
-        lines.append(f"| {nd} | {s['dofs']} | {s['contact_nodes']} | {it['inner_first']} | "
-                     f"{it['uzawa_mean']:.1f} | {it['fixed_point']} | {it['inner_total']} | "
-                     f"{it['ksp_total']} | {t['solve']:.2f} | {t['setup']:.2f} | "
-                     f"{mem(s):.0f} | {pa[0]} / {pa[1]} / {pa[2]} | {pa[3]} | {sp} | "
-                     f"{unit:.2f} | {t['solve'] / unit:.1f} | {t['setup'] / unit:.1f} |")
+        for mode in args.modes:
+            s = run(args, f"{mode}-nd{nd}", nd, MODES[mode]).summary
+            it, t = s["iterations"], s["time_s"]
+            pa = PAPER.get(nd, ("–",) * 4)
+            sp = f"{pa[3] / t['solve']:.0f}x" if nd in PAPER else "–"
+            total = it["inner_total"] + sum(c["iterations"]["inner_total"]
+                                            for c in s.get("coarse_runs", []))
+            lines.append(f"| {nd} | {mode} | {s['dofs']} | {s['contact_nodes']} | "
+                         f"{it['inner_first']} | {it['uzawa_mean']:.1f} | {it['fixed_point']} "
+                         f"| {total} | {it['ksp_total']} | {t['solve']:.2f} | "
+                         f"{t['setup']:.2f} | {mem(s):.0f} | {pa[0]} / {pa[1]} / {pa[2]} | "
+                         f"{pa[3]} | {sp} | {unit:.2f} | {t['solve'] / unit:.1f} | "
+                         f"{t['setup'] / unit:.1f} |")
     lines.append("")
 
 
@@ -84,10 +98,11 @@ def part_equal(args, lines):
     nd = args.equal_nd
     ref, ref2 = (run(args, f"{k}-nd{nd}", nd, v) for k, v in REFS.items())
     agree = harness.rel_errors(ref2, ref)
-    cases = {"faithful": [], "fast": FAST,
+    cases = {"faithful": FAITHFUL, "fast": FAST,
              "fast, tight (-uzawa_rtol 1e-8 -fp_rtol 1e-8)": FAST + ["-uzawa_rtol", "1e-8",
-                                                                    "-fp_rtol", "1e-8"]}
-    lines += [f"## Faithful vs fast at Nd = {nd}, errors against the reference", "",
+                                                                    "-fp_rtol", "1e-8"],
+             "newton (default)": NEWTON}
+    lines += [f"## Faithful vs fast vs newton at Nd = {nd}, errors against the reference", "",
               "Reference: SSN at tolerance 1e-12 (Uzawa, fixed point; Newton 1e-13) with "
               "CG + GAMG (KSP rtol 1e-12), checked against the same with a direct Cholesky "
               f"solve: they differ by {agree['u']:.1e} (displacement, relative L2), "
@@ -97,8 +112,8 @@ def part_equal(args, lines):
               "|---|---|---|---|---|---|---|"]
     res = {}
     for name, opts in cases.items():
-        case = (f"faithful-nd{nd}" if name == "faithful" else
-                (f"fast-nd{nd}" if opts == FAST else f"fast-tight-nd{nd}"))
+        case = {"faithful": f"faithful-nd{nd}", "newton (default)": f"newton-nd{nd}"}.get(
+            name, f"fast-nd{nd}" if opts == FAST else f"fast-tight-nd{nd}")
         r = run(args, case, nd, opts, force=args.force and name != "faithful")
         s, e = r.summary, harness.rel_errors(r, ref)
         res[name] = (s["time_s"]["solve"], e)
@@ -169,30 +184,33 @@ def part_floor(args, lines):
 
 def _floor_cases(smoke=False):
     its = 300 if smoke else 3000
-    few = ["-apg_max_it", str(its), "-apg_error_if_not_converged", "false",
+    few = FAITHFUL + ["-apg_max_it", str(its), "-apg_error_if_not_converged", "false",
            "-uzawa_max_it", "1", "-uzawa_error_if_not_converged", "false",
            "-fp_max_it", "1", "-fp_error_if_not_converged", "false"]
     for nd in ((2,) if smoke else (10, 20)):
         yield nd, f"faithful, first {its} iterations", few, 14
     if not smoke:
-        yield 10, "-apg_restart gradient (whole solve)", ["-apg_restart", "gradient"], 19
+        yield 10, "-apg_restart gradient (whole solve)", FAITHFUL + ["-apg_restart",
+                                                                      "gradient"], 19
 
 
 def part_ranks(args, lines):
-    lines += ["## 1 rank vs 2 ranks, fast mode", "",
+    lines += ["## 1 rank vs 2 ranks, default mode (newton)", "",
               "| Nd | ranks | solve time, s | speed-up | setup, s | peak memory per rank, MiB "
-              "| SSN / KSP its | LSE, s | solve / LSE |", "|---|---|---|---|---|---|---|---|---|"]
+              "| Newton / KSP its | LSE, s | solve / LSE | set-up / LSE |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for nd in args.ranks_nd:
         t1 = None
         for np_ in (1, 2):
-            case = f"fast-nd{nd}" if np_ == 1 else f"fast-nd{nd}-np2"
-            s = run(args, case, nd, FAST, np_=np_).summary
+            case = f"newton-nd{nd}" if np_ == 1 else f"newton-nd{nd}-np2"
+            s = run(args, case, nd, NEWTON, np_=np_).summary
             t = s["time_s"]["solve"]
             t1 = t if np_ == 1 else t1
             lines.append(f"| {nd} | {np_} | {t:.2f} | {t1 / t:.2f} | {s['time_s']['setup']:.2f} "
                          f"| {' / '.join(f'{m:.0f}' for m in s['peak_rss_mib'])} | "
                          f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} | "
-                         f"{lse(args, nd, np_):.2f} | {t / lse(args, nd, np_):.1f} |")
+                         f"{lse(args, nd, np_):.2f} | {t / lse(args, nd, np_):.1f} | "
+                         f"{s['time_s']['setup'] / lse(args, nd, np_):.1f} |")
     lines.append("")
 
 
@@ -201,6 +219,8 @@ def main(argv=None):
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
                                                        "ranks"])
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
+    ap.add_argument("--modes", nargs="+", default=["newton", "fast"], choices=list(MODES),
+                    help="the modes of the table1 part")
     ap.add_argument("--equal-nd", type=int, default=10, help="size of the 'equal' part")
     ap.add_argument("--ranks-nd", type=int, nargs="+", default=[20, 40])
     ap.add_argument("--force", action="store_true", help="rerun cached cases")

@@ -55,14 +55,15 @@ def t(x):
 #: the larger sizes, trimmed to keep the default run under 12 min: restart at 1e-12 took
 #: 68..>120 s and SSN at 1e-12 45..92 s at Nd = 12 on the shared machine; quick),
 #: sizes ("small": only the smallest Nd), per-case timeout (s)
+LOOPS = ["-solver_mode", "faithful"]   # the paper's loops (the default is the newton mode)
 VARIANTS = {
     "faithful": dict(
-        label="faithful FISTA (paper)", base=[],
+        label="faithful FISTA (paper)", base=LOOPS,
         knob=lambda x: ["-apg_rtol", t(x), "-uzawa_rtol", t(outer(x)), "-fp_rtol", t(outer(x))],
         knob_text="-apg_rtol tol -uzawa_rtol tol -fp_rtol tol",
         tols=[1e-6, 1e-7, 1e-8], quick=[1e-6, 1e-7], sizes="small", timeout=150),
     "restart": dict(
-        label="FISTA + gradient restart", base=["-apg_restart", "gradient"],
+        label="FISTA + gradient restart", base=LOOPS + ["-apg_restart", "gradient"],
         knob=lambda x: ["-apg_rtol", t(x), "-uzawa_rtol", t(outer(x)), "-fp_rtol", t(outer(x))],
         knob_text="-apg_rtol tol -uzawa_rtol tol -fp_rtol tol",
         tols=[1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12],
@@ -70,14 +71,14 @@ VARIANTS = {
         quick=[1e-6, 1e-9], sizes="all", timeout=120),
     "diagonal": dict(
         label="diagonal metric + restart",
-        base=["-apg_metric", "diagonal", "-apg_restart", "gradient"],
+        base=LOOPS + ["-apg_metric", "diagonal", "-apg_restart", "gradient"],
         knob=lambda x: ["-apg_rtol", t(x), "-uzawa_rtol", t(outer(x)), "-fp_rtol", t(outer(x))],
         knob_text="-apg_rtol tol -uzawa_rtol tol -fp_rtol tol",
         tols=[1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12],
         tols_large=[1e-6, 1e-8, 1e-10, 1e-12],
         quick=[1e-6, 1e-9], sizes="all", timeout=120, probe="-apg_metric"),
     "ssn": dict(
-        label="semismooth Newton", base=["-uzawa_inner", "ssn"],
+        label="semismooth Newton", base=LOOPS + ["-uzawa_inner", "ssn"],
         knob=lambda x: ["-ssn_rtol", t(x), "-uzawa_rtol", t(outer(x)), "-fp_rtol", t(outer(x))],
         knob_text="-ssn_rtol tol -uzawa_rtol tol -fp_rtol tol",
         tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-12], tols_large=[1e-4, 1e-8],
@@ -87,21 +88,26 @@ VARIANTS = {
         knob=lambda x: ["-uzawa_rtol", t(x), "-fp_rtol", t(x), "-ssn_rtol", t(min(1e-10, x))],
         knob_text="-uzawa_rtol tol -fp_rtol tol -ssn_rtol min(1e-10, tol)",
         tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-12], quick=[1e-4, 1e-8], sizes="all", timeout=120),
+    "newton": dict(
+        label="newton (default): whole-problem semismooth Newton",
+        base=["-solver_mode", "newton"],
+        knob=lambda x: ["-newton_rtol", t(x)], knob_text="-newton_rtol tol",
+        tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-12], quick=[1e-4, 1e-8], sizes="all", timeout=120),
 }
 
 #: reference solutions: the first is the one errors are measured against
 REF_SSN = ("ref-ssn", "SSN, iterative (CG + GAMG)",
-           ["-uzawa_inner", "ssn", "-ssn_rtol", "1e-13", "-uzawa_rtol", "1e-12",
-            "-fp_rtol", "1e-12", "-ssn_ksp_rtol", "1e-12"])
+           LOOPS + ["-uzawa_inner", "ssn", "-ssn_rtol", "1e-13", "-uzawa_rtol", "1e-12",
+                    "-fp_rtol", "1e-12", "-ssn_ksp_rtol", "1e-12"])
 REF_APG = ("ref-apg", "FISTA + gradient restart",
-           ["-apg_restart", "gradient", "-apg_rtol", "1e-14", "-uzawa_rtol", "1e-12",
-            "-fp_rtol", "1e-12"])
+           LOOPS + ["-apg_restart", "gradient", "-apg_rtol", "1e-14", "-uzawa_rtol", "1e-12",
+                    "-fp_rtol", "1e-12"])
 #: CG preconditioned by an exact MUMPS Cholesky factorisation, refactored when the contact
 #: sets change (-ssn_pc_reuse): 52..94 s at Nd = 12 where -ssn_ksp_type preonly (a new
 #: factorisation every Newton step) took 182 s and APG + restart at 1e-14 268 s
 REF_MUMPS = ("ref-mumps", "SSN, CG + MUMPS Cholesky",
-             ["-uzawa_inner", "ssn", "-ssn_rtol", "1e-13", "-uzawa_rtol", "1e-12",
-              "-fp_rtol", "1e-12", "-ssn_ksp_type", "cg", "-ssn_pc_type", "cholesky",
+             LOOPS + ["-uzawa_inner", "ssn", "-ssn_rtol", "1e-13", "-uzawa_rtol", "1e-12",
+                      "-fp_rtol", "1e-12", "-ssn_ksp_type", "cg", "-ssn_pc_type", "cholesky",
               "-ssn_pc_factor_mat_solver_type", "mumps", "-ssn_ksp_rtol", "1e-12"])
 MESH_OPTS = ["-solver_mode", "fast", "-uzawa_rtol", "1e-10", "-fp_rtol", "1e-10",
              "-ssn_rtol", "1e-12"]
@@ -139,8 +145,9 @@ def option_works(nd, option, value, args, log):
     """True if `option value` runs and `option <nonsense>` is refused (i.e. the option is
     really read, not silently ignored)."""
     d = os.path.join(args.out_dir, "probe")
-    good, bad = (harness.run_case(d, ["-nd", nd, option, v], force=True, check=False,
-                                  log=lambda m: None) for v in (value, "no_such_value"))
+    good, bad = (harness.run_case(d, ["-nd", nd] + LOOPS + [option, v], force=True,
+                                  check=False, log=lambda m: None)
+                 for v in (value, "no_such_value"))
     ok = good.ok and bad.status == "failed"
     why = "" if ok else (good.error if not good.ok else
                          "option is ignored (a nonsense value is accepted)")
@@ -259,7 +266,7 @@ def extrapolate(rows):
 MEASURES = (("u", "displacement, rel. L2 over nodes"), ("p", "contact pressure, rel. max-norm"),
             ("J", "energy, relative"))
 STYLE = {"faithful": ("C3", "s"), "restart": ("C0", "o"), "diagonal": ("C2", "^"),
-         "ssn": ("C1", "D"), "fast": ("C4", "v")}
+         "ssn": ("C1", "D"), "fast": ("C4", "v"), "newton": ("k", "*")}
 
 
 def plot_errors(nd, data, path):

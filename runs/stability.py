@@ -43,7 +43,8 @@ RECORD = os.path.join(ROOT, "runs", "results", "stability.md")
 PY = sys.executable
 E0 = 21.19e4                                  # the paper's Young's modulus, MPa
 FAST = ["-solver_mode", "fast"]
-FAITHFUL = ["-apg_max_it", "20000"]           # the paper's APG, stopped at 20000 iterations
+#: the paper's loops (the default is -solver_mode newton), APG stopped at 20000 iterations
+FAITHFUL = ["-solver_mode", "faithful", "-apg_max_it", "20000"]
 FAITHFUL_R6 = FAITHFUL + ["-uzawa_r", "1e6"]  # an r the capped APG reaches at Nd = 3
 DIRECT = ["-ssn_ksp_type", "preonly", "-ssn_pc_type", "cholesky"]   # exact Newton systems
 COLD = ["-fp_warm_start", "none"]             # fast mode without the fixed-point warm start
@@ -59,7 +60,8 @@ class Case:
 
     @property
     def mode(self):
-        return "fast" if "fast" in self.opts else "faithful"
+        o = self.opts
+        return o[o.index("-solver_mode") + 1] if "-solver_mode" in o else "newton"
 
 
 def num(v):
@@ -76,7 +78,8 @@ def cases_r():
                 nd(3) + ["-uzawa_r", r] + FAITHFUL)
            for r in ("1e2", "1e4", "1e6", "1e7", "1e8", "1e10", "1e12")]
     out += [Case(f"r-paper-{r}", f"r = {r}, the paper's APG limit (1e6)",
-                 nd(3) + ["-uzawa_r", r]) for r in ("1e8", "1e10", "1e12")]
+                 nd(3) + ["-uzawa_r", r, "-solver_mode", "faithful"])
+            for r in ("1e8", "1e10", "1e12")]
     out += [Case(f"r-fast-{r}", f"r = {r}", nd(4) + ["-uzawa_r", r] + FAST)
             for r in ("1e2", "1e3", "1e4", "1e5", "1e6", "1e8", "1e10", "1e12")]
     out.append(Case("r-fast-1e4-direct", "r = 1e4, exact Newton systems (Cholesky)",
@@ -223,6 +226,54 @@ def cases_fvar():
 
 
 # -- running -------------------------------------------------------------------------------
+#: options of the loops only: dropped (with their values) when a row becomes a newton row
+LOOP_ONLY = {"-uzawa_r", "-solver_mode", "-fp_warm_start", "-ssn_ksp_type", "-ssn_pc_type",
+             "-apg_max_it", "-apg_rtol", "-fp_relaxation"}
+NEWTON = ["-solver_mode", "newton"]
+SCENES = os.path.join(ROOT, "runs", "scenes")
+
+
+def cases_newton():
+    """The default solver on every other group's problem (the loops' options dropped, rows
+    that then coincide run once, at the row's Nd), then harder rows."""
+    out, seen = [], set()
+    for make in (cases_r, cases_young, cases_poisson, cases_friction, cases_loads,
+                 cases_thin, cases_elements, cases_fvar):
+        for c in make():
+            o, i = [], 0
+            while i < len(c.opts):
+                if c.opts[i] in LOOP_ONLY:
+                    i += 2
+                    continue
+                o.append(c.opts[i])
+                i += 1
+            if tuple(o) in seen:
+                continue
+            seen.add(tuple(o))
+            out.append(Case(f"newton-{c.id}", c.desc, o + NEWTON))
+    sc = lambda name: ["-scene", os.path.join(SCENES, name)]           # noqa: E731
+    out += [Case(f"newton-F{f}-nd{n}", f"F = {f} at Nd = {n}",
+                 nd(n) + ["-friction", f] + NEWTON)
+            for f in ("2", "100") for n in (10, 20)]
+    out += [Case("newton-fjump-nd10", "F jumps 0.1 -> 2.1 at x = 1.5, Nd = 10",
+                 nd(10) + ["-friction", "0.1+2*(x>1.5)"] + NEWTON),
+            Case("newton-fjump-nd20", "F jumps 0 -> 1 along y = 0.5 and x = 1.5, Nd = 20",
+                 nd(20) + ["-friction", "where((x>1.5)|(y>0.5),1.0,0.0)"] + NEWTON),
+            Case("newton-tang-turn", "a held block sheared along x, then along y (the "
+                 "slip direction turns), 6 increments", sc("block_turn.yaml") + NEWTON),
+            Case("newton-block-shear", "a block held by friction alone, 4 increments",
+                 sc("block_shear.yaml") + NEWTON),
+            Case("newton-block-slides", "the same sheared beyond F p: must fail (the body "
+                 "slides)", sc("block_shear.yaml") + ["-scene_boundary_shear_traction_0",
+                                                       "1.2"] + NEWTON),
+            Case("newton-incline", "a block on an inclined foundation",
+                 sc("block_incline.yaml") + NEWTON),
+            Case("newton-hertz", "Hertz contact of a curved gap", sc("hertz.yaml") + NEWTON),
+            Case("newton-nu-0.4999-nd10", "nu = 0.4999 at Nd = 10",
+                 nd(10) + ["-poisson", "0.4999"] + NEWTON)]
+    return out
+
+
 def option_support(cases, out):
     """{option: how it is known} for the options rows require: listed by -help, or accepted
     by the solver (which rejects unknown options) on a tiny run; None if neither."""
@@ -596,6 +647,26 @@ def findings_elements(R):
         f"({R.it('elem-3x1x6-nd3', 'ksp_total')} vs {R.it('elem-3x1x1-nd6', 'ksp_total')}).")
 
 
+def findings_newton(R):
+    ok = [i for i in R.results if R.ok(i)]
+    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
+    must_fail = ("newton-fvar-negative", "newton-fvar-syntax", "newton-fvar-name",
+                 "newton-block-slides", "newton-thin-plate-toptraction-stale")
+    failed = [i for i in R.failed("newton-")]
+    unexpected = [i for i in failed if i not in must_fail]
+    return (
+        f"The default solver converges on {len(ok)} of {len(R.results)} rows (Newton steps "
+        f"on the finest mesh {span(its)}; max residual {R.max_res(ok)}), including F = 100 "
+        f"at Nd = 20 ({R.it('newton-F100-nd20', 'inner_total')} steps), nu = 0.4999 at "
+        f"Nd = 10 ({R.it('newton-nu-0.4999-nd10', 'ksp_total')} GMRES iterations: GAMG on "
+        f"a nearly incompressible body), the friction-held block "
+        f"({R.it('newton-block-shear', 'inner_total')} steps over 4 increments) and the "
+        f"turning shear ({R.it('newton-tang-turn', 'inner_total')} over 6). The rows that "
+        f"must fail fail with their named reason: {R.failures('newton-') or 'none'}"
+        + (f"; unexpected failures: {', '.join(unexpected)}." if unexpected else
+           "; no other row fails."))
+
+
 def findings_fvar(R):
     fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
           if R.summary(i) and R.summary(i)["iterations"]["fixed_point"]]
@@ -640,6 +711,13 @@ GROUPS = {
                  "The 3 x 1 x 1 beam meshed with elongated or flat hexahedra "
                  "(`-scene_mesh_cells_per_nd_*`); the cube mesh at Nd = 6 is the reference.",
                  cases_elements, findings_elements),
+    "newton": ("The default solver (newton) on every row",
+               "Each row of the groups above with the loops' options dropped (`-uzawa_r`, "
+               "`-fp_relaxation`, `-solver_mode`, ...; rows that then coincide run once), "
+               "solved by the default whole-problem Newton, then rows that push harder: "
+               "F = 2 and 100 at Nd = 10 and 20, F with jumps, a tangential load that turns, "
+               "the friction-held block, the incline, Hertz, nu = 0.4999 at Nd = 10.",
+               cases_newton, findings_newton),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar, findings_fvar),
@@ -648,7 +726,7 @@ GROUPS = {
 #: --smoke: one or two cheap rows per group, two malformed inputs among them
 SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "load-press-300", "thin-plate-nd1", "elem-1x3x3-nd2", "fvar-half", "fvar-negative",
-         "fvar-syntax", "F-fast-relax-0.6")
+         "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear")
 
 
 def main(argv=None):

@@ -3,7 +3,7 @@
     .venv/bin/python runs/table1.py 5 10 20          # runs each Nd, then prints the table
     .venv/bin/python runs/table1.py --collect DIR... # only tabulate existing summary.json
     .venv/bin/python runs/table1.py --smoke --out-dir /tmp/t1   # Nd = 2 (tests)
-Each run: python -m contact -nd N -fp_monitor -output_dir runs/out/table1-ndN (the paper's
+Each run: python -m contact -nd N -solver_mode faithful -fp_monitor -output_dir runs/out/table1-ndN (the paper's
 scene and tolerances, r = 1e8, faithful mode; --out-dir DIR: DIR/table1-ndN), reused when
 its summary.json exists (--force reruns); its console output is in stdout.txt there.
 """
@@ -48,7 +48,8 @@ def main(argv=None):
     else:
         nds = [2] if args.smoke else (args.nd or [5, 10])
         dirs = [harness.run_case(os.path.join(args.out_dir, f"table1-nd{nd}"),
-                                 ["-nd", nd, "-fp_monitor"], force=args.force,
+                                 ["-nd", nd, "-solver_mode", "faithful", "-fp_monitor"],
+                                 force=args.force,
                                  log=lambda m: print(m, file=sys.stderr)).dir
                 for nd in nds]
     print("\n".join(harness.provenance_lines(1, argv=argv)) + "\n")

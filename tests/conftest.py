@@ -24,6 +24,10 @@ PAPER = os.path.join(ROOT, "runs", "paper_beam.yaml")
 
 
 def paper_scene(nd=2, **solver):
+    """The paper's beam; `solver`: the scene's solver section. The solver mode is the
+    paper's loops (mode="faithful") unless given: most tests here test the loops; the
+    default solver's tests (test_coulomb.py) pass mode="newton"."""
+    solver.setdefault("mode", "faithful")
     sc = scenes.load(PAPER)
     sc["mesh"]["nd"] = nd
     sc["solver"].update(solver)
@@ -32,7 +36,9 @@ def paper_scene(nd=2, **solver):
 
 def block_scene(parts, nd=2, young=1.0e3, poisson=0.3, friction=0.0, size=(1.0, 1.0, 1.0),
                 **solver):
-    """Box [0,size] meshed nd^3 (per unit cells_per_nd 1) with the given boundary parts."""
+    """Box [0,size] meshed nd^3 (per unit cells_per_nd 1) with the given boundary parts
+    (solver mode: as paper_scene's, "faithful" unless given)."""
+    solver.setdefault("mode", "faithful")
     sc = {"name": "block", "mesh": {"type": "box", "lower": [0, 0, 0], "upper": list(size),
                                     "cells_per_nd": [1, 1, 1], "nd": nd},
           "material": {"young": young, "poisson": poisson},

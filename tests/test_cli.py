@@ -33,7 +33,7 @@ def _run(opts):
 
 def test_run_writes_results(mpi_tmp_path):
     out = os.path.join(mpi_tmp_path, "out")
-    s = _run({"nd": "2", "uzawa_r": "1e6", "output_dir": out})
+    s = _run({"nd": "2", "output_dir": out})          # the default solver (newton)
     nd = 2
     assert s["dofs"] == 3 * (3 * nd + 1) * (nd + 1) ** 2          # n_p as the paper counts
     assert s["contact_nodes"] == (3 * nd + 1) * (nd + 1)          # n_d
@@ -100,7 +100,7 @@ def _check_against_independent(out):
     integrals) equals summary.json's energy."""
     import yaml
     rank0 = MPI.COMM_WORLD.rank == 0
-    pr = solve(paper_scene(nd=2, uzawa_r=1e6), PETSc.COMM_SELF)
+    pr = solve(paper_scene(nd=2, mode="newton"), PETSc.COMM_SELF)
     assert pr.converged
     xyz_ref, u_ref = gather(pr)[:2]
     if not rank0:

@@ -88,28 +88,34 @@ def test_bench(tmp_path):
     script("bench.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "bench.md")
     assert "Machine:" in md and "Command: `python runs/bench.py --smoke" in md
-    row, = [r for r in table_rows(md, 2) if len(r) == 17]                # Table 1, Nd = 2
-    assert (int(row[1]), int(row[2])) == (n_p(2), n_d(2))
-    assert 6 <= int(row[5]) <= 10                          # fixed-point its (paper: 8)
+    rows = {r[1]: r for r in table_rows(md, 2) if len(r) == 18}        # Table 1, Nd = 2
+    assert set(rows) == {"newton", "fast"}
+    for r in rows.values():
+        assert (int(r[2]), int(r[3])) == (n_p(2), n_d(2))
+    assert 6 <= int(rows["fast"][6]) <= 10                 # fixed-point its (paper: 8)
+    assert int(rows["newton"][6]) == 0 and int(rows["newton"][4]) >= 1   # no loops: Newton
     # the LSE: a linear solve of the same mesh, timed; solve / LSE is their ratio
     lse = harness.cached(tmp_path / "lse-nd2", ["-nd", 2, "-scene", LSE_SCENE,
                                                   "-elastic_ksp_rtol", "1e-8"])
     assert lse.ok and lse.summary["mode"] == "linear" and lse.summary["dofs"] == n_p(2)
-    fast = harness.cached(tmp_path / "fast-nd2", ["-nd", 2, "-solver_mode", "fast"])
-    ratio = fast.summary["time_s"]["solve"] / lse.summary["time_s"]["solve"]
-    assert abs(float(row[15]) - ratio) <= 0.051 and float(row[14]) >= 0.0
-    # two references by different linear solvers agree; fast mode close to them
+    for mode in rows:
+        run = harness.cached(tmp_path / f"{mode}-nd2", ["-nd", 2, "-solver_mode", mode])
+        ratio = run.summary["time_s"]["solve"] / lse.summary["time_s"]["solve"]
+        assert abs(float(rows[mode][16]) - ratio) <= 0.051 and float(rows[mode][17]) >= 0.0
+    # two references by different linear solvers agree; fast and newton close to them
     agree = re.search(r"they differ by (\S+) \(displacement", md)
     assert float(agree.group(1)) < 1e-8
     fast, = [r for r in table_rows(md, "fast")]
     assert float(fast[3]) < 1e-5 and float(fast[4]) < 1e-5
+    newton, = [r for r in table_rows(md, "newton (default)")]
+    assert float(newton[3]) < 1e-6 and float(newton[4]) < 1e-6
     assert table_rows(md, "faithful") and "memory-traffic floor" in md
-    # 1 rank vs 2 ranks: two rows, and the 2-rank run's answer is the 1-rank one's
-    assert [r[1] for r in table_rows(md, 2) if len(r) == 9 and r[1].isdigit()] == ["1", "2"]
-    one = harness.cached(tmp_path / "fast-nd2", ["-nd", 2, "-solver_mode", "fast"])
-    two = harness.cached(tmp_path / "fast-nd2-np2", ["-nd", 2, "-solver_mode", "fast"], 2)
+    # 1 rank vs 2 ranks (default mode): two rows, and the 2-rank answer is the 1-rank one's
+    assert [r[1] for r in table_rows(md, 2) if len(r) == 10 and r[1].isdigit()] == ["1", "2"]
+    one = harness.cached(tmp_path / "newton-nd2", ["-nd", 2, "-solver_mode", "newton"])
+    two = harness.cached(tmp_path / "newton-nd2-np2", ["-nd", 2, "-solver_mode", "newton"], 2)
     assert one.ok and two.ok and two.summary["ranks"] == 2
-    assert harness.rel_errors(two, one)["u"] < 1e-5           # fast mode: 3e-7 from the ref.
+    assert harness.rel_errors(two, one)["u"] < 1e-7
 
 
 def test_report(tmp_path):
@@ -120,7 +126,7 @@ def test_report(tmp_path):
     # the two references, different algorithms (SSN, FISTA + restart), agree
     agreement = [r for r in refs if len(r) == 4]
     assert agreement and max(float(x) for x in agreement[0][1:]) < 1e-8
-    for variant in ("faithful", "restart", "diagonal", "ssn", "fast"):
+    for variant in ("faithful", "restart", "diagonal", "ssn", "fast", "newton"):
         row, = table_rows(md, variant)
         assert row[-1] == "True" and float(row[5]) < 1e-3, row       # converged, error
     assert float(table_rows(md, "fast")[0][5]) < 1e-5
@@ -135,7 +141,7 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Findings.**") == 8                     # every group's findings render
+    assert md.count("**Findings.**") == 9                     # every group's findings render
     row = {c[0]: c for c in (table_rows(md, i)[0] for i in
                              ("F-fast-nd4-0.3", "load-press-300", "fvar-negative",
                               "fvar-syntax", "F-fast-relax-0.6"))}

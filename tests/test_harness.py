@@ -47,7 +47,8 @@ def test_solution_and_errors(tmp_path):
 
 
 def test_failure_and_timeout(tmp_path):
-    bad, opts = tmp_path / "bad", ["-nd", 1, "-apg_metric", "nonsense"]
+    bad, opts = tmp_path / "bad", ["-nd", 1, "-solver_mode", "faithful", "-apg_metric",
+                                   "nonsense"]
     with pytest.raises(harness.CaseFailed, match="-apg_metric must be"):
         harness.run_case(bad, opts, log=lambda m: None)
     run = harness.run_case(bad, opts, check=False, reuse_failures=True, log=lambda m: None)

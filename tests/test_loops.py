@@ -27,6 +27,7 @@ def test_continue_when_asked_reports_not_converged(comm):
 
 def test_command_line_overrides_scene(comm):
     o = PETSc.Options()
+    o.setValue("solver_mode", "faithful")     # the paper's loops
     o.setValue("apg_rtol", "1e-5")            # loop option beats the scene's solver value
     o.setValue("nd", "1")                     # named scene option
     o.setValue("scene_boundary_top_traction_2", "-40")
