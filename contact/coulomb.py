@@ -12,25 +12,33 @@ is, in force units (w times the conditions above; R_i on every other dof):
     active, stick (|z| <= F a_n, F > 0) w rho h,        w rho x_t              (held)
     active, slip                        w rho h,        R_t - w F a_n z/|z|
 Each Newton step solves the generalized Jacobian: rows of A, Dirichlet rows (dx_n = -h on
-active nodes, dx_t = -x_t on stick nodes, eliminated symmetrically), and at slip nodes,
+active nodes, dx_t = -x_t on stick nodes; MatZeroRows, columns kept), and at slip nodes,
 with c = F a_n / |z| in [0, 1), n = z/|z| and P = I - n n^T, the rows multiplied by
 (I - c P)^-1 = I + c/(1-c) P:
     A_t - F n A_n + w rho c/(1-c) P (on x_t) + w F rho n (on x_n)
 (nonsymmetric through F n A_n: GMRES, right-preconditioned, with GAMG; options prefix
 -newton_). A backtracking line search on the residual norm globalises the step (the full
-step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)||.
-The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew); GAMG keeps its
-interpolation after the first set-up (-newton_pc_gamg_reuse_interpolation, default true
-here) and only recomputes the Galerkin products, since the Jacobian has A's nonzero pattern.
-Host work per step: the contact nodes' arrays and the slip rows (small); the Jacobian is a
-copy of A with those rows replaced, built on the host; vectors are Vec operations.
+step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)|| (-newton_rtol).
+From x = 0 the first step holds every active node (glued): from there the slip directions
+are the solution's own, not the bare load's (a body held by friction alone would otherwise
+get a singular first Jacobian).
+The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew). The
+preconditioner (GAMG) of the first step is kept while the solves stay short
+(-newton_pc_reuse, -newton_pc_rebuild_its): the Jacobian differs from step to step only in
+the contact rows; a rebuild keeps GAMG's interpolation (-newton_pc_gamg_reuse_interpolation,
+default true here) and recomputes the Galerkin products only.
+Memory: the Jacobian is A itself with its contact rows changed during the solve (one
+matrix, not two; at Nd = 80 A is 4.6 GB), and A gets its rows back at the end, also when
+the iteration fails; the residual reads A's own contact rows from a small copy (S, the
+contact rows only). Host work per step: the contact nodes' arrays and the slip rows
+(MatSetValues of a few thousand rows); vectors are Vec operations.
 """
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import options
-from .loop import CONVERGED_RTOL, CONVERGED_ZERO, DIVERGED_MAX_IT, Loop
+from .loop import CONVERGED_ZERO, Loop
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
@@ -57,6 +65,7 @@ class CoulombNewton(Loop):
     def __init__(self, A, b, cs, clamped, diag_scale):
         super().__init__(A.getComm())
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
+        self.bc = None
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
         self.diag_scale = float(diag_scale)
         self.ksp_iterations = 0
@@ -64,8 +73,9 @@ class CoulombNewton(Loop):
         self._rebuild = False
         self.line_search_cuts = 0
         self.n_active = self.n_stick = self.n_slip = 0
-        self.K = None
-        self.R, self.r, self.dx, self.xt, self.free = (b.duplicate() for _ in range(5))
+        self.R, self.r, self.dx, self.xt, self.free, self.rhs = \
+            (b.duplicate() for _ in range(6))
+        A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)   # rows zeroed, restored
         self.free.set(1.0)
         self.free.setValues(self.clamped, np.zeros(len(self.clamped)))
         self.free.assemble()
@@ -89,7 +99,7 @@ class CoulombNewton(Loop):
         if not 0.0 < self.ew_max < 1.0:
             raise ValueError(f"-newton_ew_max must be in (0, 1), got {self.ew_max}")
         with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
-                               self.prefix + "ksp_gmres_restart": "60"}):
+                               self.prefix + "ksp_gmres_restart": "30"}):
             self.ksp.setFromOptions()
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
@@ -98,6 +108,14 @@ class CoulombNewton(Loop):
     def set_load(self, b, gap):
         """The load and gap of the next solves (a load increment's)."""
         self.b, self.gap = b, gap
+        self.bc = None                                # b at the contact dofs (_gather_load)
+
+    def _gather_load(self):
+        if self.bc is None:
+            self.bc = []
+            for k in range(3):
+                self.cs.gather(self.b, self.c[k], k)
+                self.bc.append(self.cs.local_array(self.c[k]))
 
     # -- the contact rows of A (host, once) ----------------------------------------------------
     def _contact_rows(self):
@@ -112,8 +130,10 @@ class CoulombNewton(Loop):
         isc = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
         S = A.createSubMatrix(isr, isc)
         ia, ja, a = S.getValuesCSR()
-        for o in (S, isr, isc):
+        for o in (isr, isc):
             o.destroy()
+        self.S, self.ys = S, S.createVecLeft()        # R at the contact rows: S x - b
+        self.rows = rows
         n = np.diff(ia)
         W = int(n.max()) if n.size else 1
         pos = np.arange(ja.size) - np.repeat(ia[:-1], n)
@@ -131,17 +151,33 @@ class CoulombNewton(Loop):
         self.own = [np.argmax(self.cols[2] == np.asarray(cs.dofs[k])[:, None], axis=1)
                     for k in range(3)]
 
+    def _set_contact_rows(self, rows, cols, vals):
+        """Insert rows (k,) with padded cols (k, W) and vals (k, W) into A."""
+        self.A.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
+                            vals[:, None, :], INSERT)
+
+    def _restore(self):
+        """A's own contact rows back (the Jacobian is A with those rows changed)."""
+        W = self.cols.shape[2]
+        self._set_contact_rows(self.rows, self.cols.reshape(-1, W), self.vals.reshape(-1, W))
+        self.A.assemble()
+
+    def _reaction(self, x):
+        """R = A x - b at the contact dofs (from A's own rows, whatever the Jacobian has
+        made of them): three owned arrays, tangential 1, 2 and normal."""
+        self.S.mult(x, self.ys)
+        y = self.ys.getArray(readonly=True).reshape(3, -1)
+        return [y[k] - self.bc[k] for k in range(3)]
+
     # -- residual ------------------------------------------------------------------------------
     def _state(self, x, r):
         """The sets, slip data and the residual r(x) (into r); returns (||r||, state)."""
         _EV_RES.begin()
         cs, c = self.cs, self.c
-        self.A.mult(x, self.R)
-        self.R.axpy(-1.0, self.b)                      # R = A x - b
-        R, X = [], []
+        self.A.mult(x, self.R)                         # A's rows off the contact dofs
+        self.R.axpy(-1.0, self.b)                      # R = A x - b there
+        R, X = self._reaction(x), []
         for k in range(3):
-            cs.gather(self.R, c[k], k)
-            R.append(cs.local_array(c[k]))
             cs.gather(x, c[k], k)
             X.append(cs.local_array(c[k]))
         w, rho, F = self.w, self.rho, self.F
@@ -181,14 +217,10 @@ class CoulombNewton(Loop):
             st["stick"] = st["active"] & (self.F > 0.0)
             st["slip"] = st["active"] & ~st["stick"]
         _EV_MAT.begin()
-        cs, A, c = self.cs, self.A, self.c
-        if self.K is None:
-            self.K = A.duplicate(copy=True)
-            self.K.setNearNullSpace(A.getNearNullSpace())
-            self.rhs = self.b.duplicate()
-        else:
-            A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        K, rhs = self.K, self.rhs
+        cs, c = self.cs, self.c
+        K, rhs = self.A, self.rhs                    # A itself: its contact rows change
+        W = self.cols.shape[2]
+        self._set_contact_rows(self.rows, self.cols.reshape(-1, W), self.vals.reshape(-1, W))
         self.r.copy(rhs)
         rhs.scale(-1.0)
         q = np.flatnonzero(st["slip"])
@@ -207,8 +239,7 @@ class CoulombNewton(Loop):
                 V.append(v)
             rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
             cols = np.concatenate([self.cols[k][q] for k in range(2)])
-            K.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
-                           np.concatenate(V)[:, None, :], INSERT)
+            self._set_contact_rows(rows, cols, np.concatenate(V))
             # rhs at slip rows: -(I + gam P) r_t = -r_t - gam P r_t
             r1, r2 = st["r1"][q], st["r2"][q]
             pr = n[0] * r1 + n[1] * r2
@@ -218,7 +249,8 @@ class CoulombNewton(Loop):
                 c[k].setArray(t)
                 cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
         K.assemble()
-        # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick), eliminated symmetrically
+        # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick); their columns stay (the
+        # rows off the contact dofs stay A's, which the residual reads)
         act, stick, X = st["active"], st["stick"], st["X"]
         rows = np.concatenate([np.asarray(cs.dofs[2])[act], np.asarray(cs.dofs[0])[stick],
                                np.asarray(cs.dofs[1])[stick]]).astype(PETSc.IntType)
@@ -227,7 +259,7 @@ class CoulombNewton(Loop):
         self.dx.setValues(rows, vals)
         self.dx.assemble()
         self._dirichlet = (rows, vals)
-        K.zeroRowsColumns(rows, self.diag_scale, self.dx, rhs)
+        K.zeroRows(rows, self.diag_scale, self.dx, rhs)
         _EV_MAT.end()
         return K, rhs
 
@@ -262,9 +294,23 @@ class CoulombNewton(Loop):
 
     # -- solve ---------------------------------------------------------------------------------
     def solve(self, x, rtol=None):
-        """Solve from the start x (overwritten with the solution)."""
+        """Solve from the start x (overwritten with the solution). The Jacobian is A itself
+        with its contact rows changed (no second matrix: at Nd = 80 A is 4.6 GB); A gets
+        its own rows back at the end, also when the iteration fails."""
         self.begin(rtol)
+        self._gather_load()
         _EV_ITER.begin()
+        try:
+            it, reason = self._iterate(x)
+        finally:
+            self._restore()
+            self.ksp.reset()              # the preconditioner's memory (GAMG's levels)
+            _EV_ITER.end()
+        self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
+        return x
+
+    def _iterate(self, x):
+        """The Newton iteration (see the module); returns (iterations, reason)."""
         x0 = x.duplicate()
         x0.set(0.0)
         scale, _ = self._state(x0, self.r)               # ||r(0)||: the scale of the test
@@ -305,18 +351,15 @@ class CoulombNewton(Loop):
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
             self._monitor(it, self.residual, self._sets_text(t))
-        _EV_ITER.end()
-        self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
-        return x
+        return it, reason
 
     def pressure(self, x, out):
         """out <- l_n = max(0, R_n / w - rho h) at x: the contact pressure (the paper's
         multiplier), 0 on the nodes the iteration found open (where R_n / w is a rounding
         residual of either sign)."""
         cs, c = self.cs, self.c
-        self.A.mult(x, self.R)
-        self.R.axpy(-1.0, self.b)
-        cs.gather(self.R, out, 2)
+        self._gather_load()
+        out.setArray(self._reaction(x)[2])
         out.pointwiseDivide(out, cs.w)
         cs.gather(x, c[0], 2)
         c[0].axpy(1.0, self.gap)                           # h = x_n + gap

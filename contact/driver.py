@@ -11,6 +11,7 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 (options.inserted: the preset lasts for that solve only; options given by the user win).
 """
 import copy
+import gc
 
 import numpy as np
 from petsc4py import PETSc
@@ -248,7 +249,10 @@ def coarse_start(pr):
         return None
     sc = copy.deepcopy(pr.scene)
     sc["mesh"]["nd"] = pr.nd // 2
-    coarse = ContactProblem(sc, pr.comm, c2f_levels=levels - 1).solve()
+    # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of a
+    # coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol
+    with options.inserted({"newton_rtol": "1e-6"}):
+        coarse = ContactProblem(sc, pr.comm, c2f_levels=levels - 1).solve()
     pr.coarse_runs = coarse.coarse_runs + [
         {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
          "iterations": coarse.iterations()}]
@@ -259,6 +263,8 @@ def coarse_start(pr):
         transfer.prolong_contact(coarse, pr, coarse.g, g0)
     PETSc.Sys.Print(f"c2f: started Nd = {pr.nd} from the solution at Nd = {coarse.nd}",
                     comm=pr.comm)
+    del coarse
+    gc.collect()                  # the coarse levels' matrices, before the fine solve
     return l0, g0
 
 

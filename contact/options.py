@@ -37,7 +37,7 @@ class Option(NamedTuple):
 #: the prefixes of our loops, their titles and their own defaults of the common options
 LOOP_PREFIXES = {"fp_": ("FixedPoint", 1e-6, 100), "uzawa_": ("Uzawa", 1e-6, 1000),
                  "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100),
-                 "newton_": ("Newton", 1e-9, 60)}
+                 "newton_": ("Newton", 1e-11, 60)}
 #: options every loop reads under its prefix P
 COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate"),
           ("max_it", int, "N", "iteration limit"),

@@ -2,6 +2,7 @@
 import copy
 
 import numpy as np
+from petsc4py import PETSc
 from conftest import block_scene, gather, paper_scene, rel_err, solve
 
 from contact import residuals as res
@@ -71,6 +72,17 @@ def test_paper_scene_fixed_point_count_like_the_paper(comm):
     assert 6 <= pr.fp.iterations <= 10
     r = res.residuals(pr)
     assert max(r.values()) < 1e-4, r
+
+
+def test_faithful_mode_is_the_paper_iteration_unchanged():
+    """-solver_mode faithful is the paper's iteration exactly: at Nd = 2 (1 rank) its
+    iteration counts are those measured at commit 0998c29, before the newton mode existed
+    and while faithful was the default (7 fixed-point, 55 Uzawa, 52,110 APG in the first
+    Uzawa step, 231,964 APG in all)."""
+    pr = solve(paper_scene(nd=2, mode="faithful"), PETSc.COMM_SELF)
+    it = pr.iterations()
+    assert (it["fixed_point"], it["uzawa_total"], it["apg_first"], it["apg_total"]) == \
+        (7, 55, 52110, 231964), it
 
 
 def test_spence_published_stick_ratio(comm):
