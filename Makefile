@@ -7,7 +7,7 @@ VENV     ?= .venv
 PY       := $(VENV)/bin/python
 STAMP    := $(VENV)/.installed
 NP       ?= 2
-ARGS     ?= -nd 10 -newton_converged_reason -output_formats h5,xdmf,json,png
+ARGS     ?= -nd 10 -newton_converged_reason
 DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
             python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
 PIP_PKGS := pymetis clarabel gmsh

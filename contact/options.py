@@ -325,13 +325,17 @@ def usage():
     lines = ["contact: 3D frictional contact of an elastic body on a rigid foundation "
              "(duality method)",
              "Options (the scene file gives defaults, the command line wins; P = fp_, "
-             "uzawa_, apg_, ssn_):"]
+             "uzawa_, apg_, ssn_, newton_):",
+             "Solvers: -solver_mode newton (default): semismooth Newton on the whole problem, "
+             "a few GMRES + GAMG solves (-newton_*); -solver_mode faithful: the paper's "
+             "fixed point > Uzawa > APG (-fp_*, -uzawa_*, -apg_*)."]
     for text, meaning, default in _rows():
         d = f" [{default}]" if default else ""
         lines.append(f"  {text:<34} {meaning}{d}")
     lines += ["  -scene_<path> VALUE                any other scalar of the scene, e.g. "
               "-scene_boundary_top_traction_2 -40",
-              "PETSc's own: -ssn_ksp_type, -ssn_pc_type, ... (the Newton systems), "
+              "PETSc's own: -newton_ksp_type, -newton_pc_type, ... (the default solver's "
+              "linear solves), -ssn_ksp_type, -ssn_pc_type, ... (the fast mode's), "
               "-elastic_ksp_*, -elastic_pc_* (no contact part), -log_view"]
     return "\n".join(lines)
 
