@@ -31,6 +31,9 @@ MPI4PY_VERSION=${MPI4PY_VERSION:-4.1.2}
 MPICH_VERSION=${MPICH_VERSION:-4.3.2}
 PY_TARGET=${PY_TARGET:-3.12}
 PY=${PYTHON:-python3}
+# Debian's own Python, run as root outside a venv, puts `pip install --prefix P` under
+# P/local (MPICH's mpicc then is not where configure looks): the plain layout instead
+export DEB_PYTHON_INSTALL_LAYOUT=${DEB_PYTHON_INSTALL_LAYOUT:-deb_system}
 case $PY in */*) PY=$(cd "$(dirname "$PY")" && pwd)/$(basename "$PY") ;; esac
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 DEBS="libopenblas0-serial libgfortran5 libquadmath0"
