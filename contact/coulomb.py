@@ -38,7 +38,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import options
-from .loop import CONVERGED_ZERO, Loop
+from .loop import CONVERGED_ZERO, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
@@ -46,7 +46,6 @@ _EV_MAT = PETSc.Log.Event("Newton assemble")
 _EV_RES = PETSc.Log.Event("Newton residual")
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
-DIVERGED_LINE_SEARCH = "DIVERGED_LINE_SEARCH"
 INSERT = PETSc.InsertMode.INSERT_VALUES
 
 
@@ -156,10 +155,14 @@ class CoulombNewton(Loop):
         self.A.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
                             vals[:, None, :], INSERT)
 
-    def _restore(self):
-        """A's own contact rows back (the Jacobian is A with those rows changed)."""
+    def _own_rows(self):
+        """A's own contact rows back into A (not assembled)."""
         W = self.cols.shape[2]
         self._set_contact_rows(self.rows, self.cols.reshape(-1, W), self.vals.reshape(-1, W))
+
+    def _restore(self):
+        """A as it was (the Jacobian is A with its contact rows changed)."""
+        self._own_rows()
         self.A.assemble()
 
     def _reaction(self, x):
@@ -219,8 +222,7 @@ class CoulombNewton(Loop):
         _EV_MAT.begin()
         cs, c = self.cs, self.c
         K, rhs = self.A, self.rhs                    # A itself: its contact rows change
-        W = self.cols.shape[2]
-        self._set_contact_rows(self.rows, self.cols.reshape(-1, W), self.vals.reshape(-1, W))
+        self._own_rows()
         self.r.copy(rhs)
         rhs.scale(-1.0)
         q = np.flatnonzero(st["slip"])
@@ -350,7 +352,7 @@ class CoulombNewton(Loop):
             self.n_active = int(st["active"].sum())
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
-            self._monitor(it, self.residual, self._sets_text(t))
+            self._monitor(it, self.residual, self._sets_text(t) if self.monitor else "")
         return it, reason
 
     def pressure(self, x, out):
@@ -380,8 +382,5 @@ class CoulombNewton(Loop):
             self.log(f"{' ' * self.indent}{it:6d} {self.title} residual norm {res:.6e}{extra}")
 
     def _ksp_hint(self):
-        code = self.ksp.getConvergedReason()
-        name = next((k for k, v in vars(PETSc.KSP.ConvergedReason).items()
-                     if v == code and not k.startswith("_")), str(code))
-        return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
+        return (f"KSP {ksp_reason_name(self.ksp)} after {self.ksp.getIterationNumber()} iterations; try "
                 f"-newton_ksp_type preonly -newton_pc_type lu, or raise -newton_ksp_max_it")

@@ -17,6 +17,13 @@ from petsc4py import PETSc
 from . import options
 
 
+def ksp_reason_name(ksp):
+    """The name of a KSP's converged reason (e.g. DIVERGED_ITS), for error messages."""
+    code = ksp.getConvergedReason()
+    return next((k for k, v in vars(PETSc.KSP.ConvergedReason).items()
+                 if v == code and not k.startswith("_")), str(code))
+
+
 class ConvergenceError(RuntimeError):
     """A loop stopped without converging: names the loop, the iteration and the reason."""
 

@@ -30,7 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import options
-from .loop import DIVERGED_MAX_IT, Loop
+from .loop import DIVERGED_MAX_IT, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
 _EV_KSP = PETSc.Log.Event("SSN linear solve")
@@ -365,9 +365,7 @@ class SemismoothNewton(Loop):
 
     def _ksp_hint(self):
         """Why the linear solve failed, in PETSc's words, and what to try."""
-        code = self.ksp.getConvergedReason()
-        name = next((k for k, v in vars(PETSc.KSP.ConvergedReason).items()
-                     if v == code and not k.startswith("_")), str(code))
+        name = ksp_reason_name(self.ksp)
         if "NANORINF" in name:
             return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
         return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
