@@ -15,6 +15,8 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
+#: the focused subset run on 4 ranks too (ranks without contact nodes, almost empty ranks)
+TESTS4   ?= tests/test_ranks.py
 
 # $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
 # only when one is missing)
@@ -27,11 +29,11 @@ apt_ensure = missing=""; for p in $(1); do \
 	    --no-install-recommends $$missing; \
 	fi
 
-.PHONY: install run run2 test test1 test2 bench report stability validate clean help view
+.PHONY: install run run2 test test1 test2 test4 bench report stability validate clean help view
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam"
-	@echo "make test                       install if needed, run the suite on 1 and 2 ranks"
+	@echo "make test                       install if needed, run the suite on 1 and 2 ranks, tests/test_ranks.py on 4"
 	@echo "make view  [VIEW_DIR=runs/out/...]  ParaView (installed if needed) renders the last run -> PNGs"
 	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"
 	@echo "make petsc-gpu [GPU_ARGS=--cpu]  (offline) CUDA PETSc + petsc4py -> .gpu/prefix (README: GPU)"
@@ -80,13 +82,16 @@ view:
 	@auth=$$(mktemp); xvfb-run -a -f $$auth -s "-screen 0 1280x1024x24" \
 	  pvbatch contact/pvview.py $(VIEW_DIR); rc=$$?; rm -f $$auth; exit $$rc
 
-test: install test1 test2
+test: install test1 test2 test4
 
 test1: install
 	$(PY) -m pytest -q tests
 
 test2: install
 	$(MPIRUN) $(PY) -m mpi4py -m pytest -q -p no:cacheprovider tests
+
+test4: install
+	mpirun -n 4 --oversubscribe $(PY) -m mpi4py -m pytest -q -p no:cacheprovider $(TESTS4)
 
 bench: install
 	$(PY) runs/bench.py $(BENCH_ARGS)

@@ -151,7 +151,11 @@ class CoulombNewton(Loop):
                     for k in range(3)]
 
     def _set_contact_rows(self, rows, cols, vals):
-        """Insert rows (k,) with padded cols (k, W) and vals (k, W) into A."""
+        """Insert rows (k,) with padded cols (k, W) and vals (k, W) into A (not collective:
+        a rank with no contact row inserts nothing; petsc4py's setValuesRCV divides by the
+        row count)."""
+        if rows.size == 0:
+            return
         self.A.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
                             vals[:, None, :], INSERT)
 
