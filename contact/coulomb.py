@@ -230,6 +230,7 @@ class CoulombNewton(Loop):
         self.r.copy(rhs)
         rhs.scale(-1.0)
         q = np.flatnonzero(st["slip"])
+        t = [np.zeros(cs.local_size), np.zeros(cs.local_size)]     # slip rows' rhs change
         if q.size:
             w, rho, F = self.w[q], self.rho[q], self.F[q]
             n = np.stack([st["n1"][q], st["n2"][q]])                   # (2, k)
@@ -250,10 +251,10 @@ class CoulombNewton(Loop):
             r1, r2 = st["r1"][q], st["r2"][q]
             pr = n[0] * r1 + n[1] * r2
             for k, rk in enumerate((r1, r2)):
-                t = np.zeros(cs.local_size)
-                t[q] = -gam * (rk - n[k] * pr)
-                c[k].setArray(t)
-                cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
+                t[k][q] = -gam * (rk - n[k] * pr)
+        for k in range(2):              # collective: every rank, with or without slip nodes
+            c[k].setArray(t[k])
+            cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
         K.assemble()
         # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick); their columns stay (the
         # rows off the contact dofs stay A's, which the residual reads)
