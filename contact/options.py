@@ -225,9 +225,19 @@ def inserted(values):
             opts.delValue(k)
 
 
+def scalars(d, prefix=()):
+    """(path, value) of every scalar leaf of nested dicts/lists."""
+    items = d.items() if isinstance(d, dict) else enumerate(d)
+    for k, v in items:
+        p = prefix + (str(k),)
+        if isinstance(v, (dict, list)):
+            yield from scalars(v, p)
+        else:
+            yield p, v
+
+
 def known(scene=None):
     """Every option name we read (scene_* paths of `scene` included)."""
-    from .scene import scalars
     names = set(BY_NAME)
     if scene is not None:
         names |= {"scene_" + "_".join(p) for p, _ in scalars(scene)}

@@ -90,17 +90,6 @@ def _set(d, path, value):
         d[path[-1]] = value
 
 
-def scalars(d, prefix=()):
-    """(path, value) of every scalar leaf of nested dicts/lists."""
-    items = d.items() if isinstance(d, dict) else enumerate(d)
-    for k, v in items:
-        p = prefix + (str(k),)
-        if isinstance(v, (dict, list)):
-            yield from scalars(v, p)
-        else:
-            yield p, v
-
-
 #: scene values that may be an expression in x, y, z instead of a number
 EXPRESSIONS = (("contact", "friction"), ("contact", "gap"))
 
@@ -135,7 +124,7 @@ def from_options(opts=None):
             except (KeyError, IndexError, TypeError):
                 old = 1 if opt == "nd" else 0.0
             _set(scene, path, _convert(old, opts.getString(opt), opt, path))
-    for path, old in list(scalars(scene)):
+    for path, old in list(options.scalars(scene)):
         name = "scene_" + "_".join(path)
         if opts.hasName(name):
             _set(scene, path, _convert(old, opts.getString(name), name, path))
