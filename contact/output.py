@@ -3,17 +3,18 @@
 solution.h5 is written by all ranks together (PETSc's HDF5 viewer, MPI-IO), each rank its
 own piece of every dataset, nothing gathered: nodes, cells, contact nodes and contact
 faces are put in a canonical order that does not depend on the partition (nodes and
-contact nodes sorted by (z, y, x), cells and faces by their sorted node numbers; found by
-a parallel sample sort, contact/canonical.py) and moved there by VecScatters, so 1 and 2
-ranks write the same datasets. The datasets are listed once, in `BODY`, `CELLS`,
-`CONTACT` (and `MESH`): the HDF5 writer, the XDMF description and the README follow them.
+contact nodes sorted by (z, y, x), cells and faces by their sorted node numbers:
+layout.Layout, a parallel sample sort, contact/canonical.py) and moved there by
+VecScatters, so 1 and 2 ranks write the same datasets. The datasets are listed once, in
+`BODY`, `CONTACT` (and `MESH`): the HDF5 writer, the XDMF description and the README
+follow them.
 A quasi-static run (load steps) also keeps every increment's fields under /steps/NNNN/
 and the XDMF plays them as a temporal collection.
 
 Files are written under temporary names and renamed together when all are complete
 (summary.json last), so a failed or interrupted run leaves no result file.
-Figures (figures.py) use data gathered on rank 0 for them only: the contact face and the
-body's surface, small next to the volume.
+The canonical orders and the data gathered on rank 0 (tests, scripts, the figures'
+figure_data) are in layout.py.
 """
 import ctypes
 import json
@@ -24,11 +25,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import options, stress
-from .canonical import Order
-from .mesh import HEX_FACES
+from .layout import Layout, figure_data, gather_state
 
-#: PETSc hexahedron vertex order -> VTK/XDMF hexahedron order
-PETSC_TO_VTK_HEX = np.array([0, 3, 2, 1, 4, 5, 6, 7])
 INT = np.dtype(PETSc.IntType)          # integer datasets: PETSc's IS type (int32 here)
 
 
@@ -118,49 +116,7 @@ def parse_formats(text):
     return kinds
 
 
-# -- gathered on rank 0 (tests, scripts, figures) ------------------------------------------
-def _gatherv(comm, a):
-    parts = comm.gather(np.ascontiguousarray(a), root=0)
-    return np.concatenate(parts) if comm.rank == 0 else None
-
-
-def canonical_order(xyz):
-    """Permutation sorting points by (z, y, x)."""
-    return np.lexsort((xyz[:, 0], xyz[:, 1], xyz[:, 2]))
-
-
-def gather_nodes(problem, x=None):
-    """On rank 0: coordinates (n,3), displacement (n,3), cells (nc,8) in canonical order
-    (for tests and scripts; the files do not gather)."""
-    comm = problem.comm.tompi4py()
-    x = problem.to_xyz(x) if x is not None else problem.displacement()
-    xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
-    u = x.getArray(readonly=True).reshape(-1, 3)
-    rstart = problem.coordinates.getOwnershipRange()[0] // 3
-    gid = rstart + np.arange(xyz.shape[0])
-    lg = problem.dm.getLGMap().getBlockIndices()              # local vertex -> global node
-    cells = lg[problem.conn] if problem.conn.size else np.zeros((0, 8), dtype=int)
-    XYZ, U, GID, CELLS = (_gatherv(comm, a) for a in (xyz, u, gid, cells))
-    if comm.rank != 0:
-        return None
-    order = canonical_order(XYZ)
-    canon = np.empty(GID.max() + 1, dtype=np.int64)
-    canon[GID[order]] = np.arange(order.size)
-    C = canon[CELLS]
-    C = C[np.lexsort(np.sort(C, axis=1).T[::-1])]              # cells in a canonical order too
-    return XYZ[order], U[order], C
-
-
-def _gather_state(comm, state):
-    """A contact state's arrays gathered on rank 0, in canonical order."""
-    keys = [k for k in state if k not in ("w", "F")] + ["w", "F"]
-    data = {k: _gatherv(comm, state[k]) for k in keys}
-    if comm.rank != 0:
-        return None
-    order = canonical_order(data["coordinates"])
-    return {k: v[order] for k, v in data.items()}
-
-
+# -- gathered on rank 0 (tests, scripts) -----------------------------------------------------
 def gather_contact(problem, x=None):
     """On rank 0: the contact fields of stress.contact_state (coordinates, pressure, slip,
     status, traction, ...) in canonical order; slip and status of x (default the last
@@ -173,69 +129,7 @@ def gather_contact(problem, x=None):
         out = {f.name: np.zeros((0, 3) if f.comps == 3 else 0,
                                 dtype=INT if f.kind == "i" else float) for f in CONTACT}
         return dict(out, coordinates=np.zeros((0, 3)), w=np.zeros(0), F=np.zeros(0))
-    return _gather_state(comm, stress.contact_state(problem, slip=x))
-
-
-# -- the canonical layout of one problem -----------------------------------------------------
-def _orient(q):
-    """Quadrilaterals (f, 4) turned to start at their smallest number and run toward the
-    smaller neighbour: the same rows whatever the cells' vertex order."""
-    if q.shape[0] == 0:
-        return q
-    i = np.argmin(q, axis=1)
-    r = q[np.arange(q.shape[0])[:, None], (i[:, None] + np.arange(4)) % 4]
-    flip = r[:, 3] < r[:, 1]
-    r[flip] = r[flip][:, [0, 3, 2, 1]]
-    return r
-
-
-def contact_faces(problem):
-    """Local faces (f, 4) of the scene's contact parts (local vertex numbers)."""
-    faces = [problem.parts[n] for n, p in problem.scene["boundary"].items()
-             if p["type"] == "contact"]
-    return np.concatenate(faces) if faces else np.zeros((0, 4), dtype=np.intp)
-
-
-class Layout:
-    """The canonical orders (canonical.Order) of a problem's nodes, cells, contact nodes
-    and contact faces; collective."""
-
-    def __init__(self, problem):
-        comm, dm = problem.comm, problem.dm
-        mpi = comm.tompi4py()
-        xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
-        first = problem.coordinates.getOwnershipRange()[0] // 3
-        self.nodes = Order(comm, xyz[:, ::-1], first + np.arange(xyz.shape[0]))
-        number = self.nodes.to_source(self.nodes.offset + np.arange(self.nodes.count))
-        vid = np.rint(stress.local_values(dm, np.repeat(number, 3, axis=1))[:, 0])
-        cells = vid.astype(np.int64)[problem.conn]
-        nc = cells.shape[0]
-        self.cells = Order(comm, np.sort(cells, axis=1), (mpi.exscan(nc) or 0) + np.arange(nc),
-                           cells[:, PETSC_TO_VTK_HEX])
-        self.contact = self.faces = None
-        cs = problem.cs
-        if cs is not None and cs.size:
-            first = cs.template.getOwnershipRange()[0]
-            c = self.contact = Order(comm, cs.coordinates[:, ::-1],
-                                     first + np.arange(cs.local_size))
-            number = c.to_source(c.offset + np.arange(c.count))
-            owned = np.full((xyz.shape[0], 3), -1.0)
-            owned[cs.nodes] = number
-            cid = np.rint(stress.local_values(dm, owned)[:, 0]).astype(np.int64)
-            q = cid[contact_faces(problem)]
-            q = _orient(q[np.all(q >= 0, axis=1)])
-            self.faces = Order(comm, np.sort(q, axis=1), np.zeros(q.shape[0]), q)
-
-    @property
-    def sizes(self):
-        c, f = self.contact, self.faces
-        return {"nodes": self.nodes.total, "cells": self.cells.total,
-                "contact": c.total if c else 0, "faces": f.total if f else 0}
-
-    def destroy(self):
-        for o in (self.nodes, self.cells, self.contact, self.faces):
-            if o is not None:
-                o.destroy()
+    return gather_state(comm, stress.contact_state(problem, slip=x))
 
 
 # -- the states written: the solution, and each load increment of a quasi-static run ------
@@ -517,63 +411,6 @@ def prepare_dir(comm, outdir):
     err = comm.bcast(err, root=0)
     if err:
         raise OSError(err)
-
-
-# -- figures' data (gathered on rank 0) ------------------------------------------------------
-def surface(problem, body, u=None):
-    """On rank 0: the body's boundary faces as corners X (f, 4, 3), displacements U (f, 4, 3)
-    and the von Mises stress of their cells (f,). Each rank sends its cells' faces that no
-    other local cell shares (the boundary and the partition interfaces); rank 0 drops the
-    faces sent twice (interfaces)."""
-    comm = problem.comm.tompi4py()
-    u = problem.displacement() if u is None else u
-    ul = stress.local_values(problem.dm, u.getArray(readonly=True).reshape(-1, 3))
-    conn, coords = problem.conn, problem.coords
-    faces = conn[:, HEX_FACES].reshape(-1, 4)
-    cell = np.repeat(np.arange(conn.shape[0]), 6)
-    lg = problem.dm.getLGMap().getBlockIndices()
-    keys = np.sort(lg[faces], axis=1)
-    if keys.shape[0]:
-        _, first, count = np.unique(keys, axis=0, return_index=True, return_counts=True)
-        once = first[count == 1]
-    else:
-        once = np.zeros(0, dtype=np.intp)
-    f = faces[once]
-    parts = [_gatherv(comm, a) for a in (keys[once], coords[f], ul[f],
-                                         body["cell_von_mises"][cell[once]])]
-    if comm.rank:
-        return None
-    K, X, U, vm = parts
-    if K.shape[0]:
-        _, inv, count = np.unique(K, axis=0, return_inverse=True, return_counts=True)
-        keep = count[inv.ravel()] == 1
-        X, U, vm = X[keep], U[keep], vm[keep]
-    return {"X": X.reshape(-1, 4, 3), "U": U.reshape(-1, 4, 3), "von_mises": vm}
-
-
-def figure_data(problem, summary):
-    """Everything figures.py draws, on rank 0 (None elsewhere); collective."""
-    comm = problem.comm.tompi4py()
-    st = stress.final(problem)
-    surf = surface(problem, st["body"])
-    contact = faces = None
-    if st["contact"] is not None:
-        contact = _gather_state(comm, st["contact"])
-        corners = _gatherv(comm, problem.coords[contact_faces(problem)])
-        if comm.rank == 0:
-            faces = corners.reshape(-1, 4, 3)
-    if comm.rank:
-        return None
-    steps = getattr(problem, "increments", None) or []
-    return {"name": summary.get("scene", "scene"), "nd": summary.get("nd"),
-            "normal": np.asarray(problem.normal, dtype=float),
-            "point": np.asarray(problem.scene.get("contact", {}).get("foundation", {})
-                                .get("point", [0.0, 0.0, 0.0]), dtype=float),
-            "friction": problem.scene.get("contact", {}).get("friction", 0.0),
-            "surface": surf, "contact": contact, "contact_faces": faces,
-            "von_mises_max": summary.get("von_mises_max"),
-            "contact_result": summary.get("contact_result"),
-            "steps": [{"t": s["t"], **s["resultant"]} for s in steps]}
 
 
 # -- all files --------------------------------------------------------------------------------

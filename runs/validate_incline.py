@@ -26,7 +26,7 @@ petsc4py.init(sys.argv[:1])
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contact import output, residuals as res, scene as scenes  # noqa: E402
+from contact import layout, output, residuals as res, scene as scenes  # noqa: E402
 from contact.frame import basis, rotation  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
@@ -80,7 +80,7 @@ def measure_beam(nd, mode):
     for s in (copy.deepcopy(sc), scenes.turned(sc, [1.0, 2.0, 3.0], 25.0)[0]):
         t0 = time.perf_counter()
         pr = ContactProblem(s, PETSc.COMM_WORLD).solve()
-        out.append((pr, output.gather_nodes(pr), time.perf_counter() - t0))
+        out.append((pr, layout.gather_nodes(pr), time.perf_counter() - t0))
     R = rotation([1.0, 2.0, 3.0], 25.0)
     (a, na, ta), (b, nb, tb) = out
     diff = None

@@ -53,8 +53,8 @@ def solve(sc, comm=None):
 
 def gather(problem):
     """Canonical (coordinates, displacement) on every rank."""
-    from contact import output
-    res = output.gather_nodes(problem)
+    from contact import layout
+    res = layout.gather_nodes(problem)
     return problem.comm.tompi4py().bcast(res, root=0)
 
 

@@ -4,7 +4,7 @@ import pytest
 from conftest import gather, paper_scene, rel_err, solve
 from petsc4py import PETSc
 
-from contact import output
+from contact import layout, output
 from contact.apg import APG
 from contact.subproblem import Subproblem
 from contact.problem import ContactProblem
@@ -107,7 +107,7 @@ def test_a_y_by_linearity_equals_the_matmult(comm, restart, step):
         x = pr.A.createVecRight()
         x.set(0.0)
         apg.solve(sub, x)
-        runs.append((apg, output.gather_nodes(pr, x)))       # rank 0: (xyz, u, cells)
+        runs.append((apg, layout.gather_nodes(pr, x)))       # rank 0: (xyz, u, cells)
     (lin, ulin), (mat, umat) = runs
     assert abs(lin.iterations - mat.iterations) <= 2
     assert lin.restarts > 0

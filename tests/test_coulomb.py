@@ -29,8 +29,8 @@ from test_independent_reference import FRICTIONS_BEAM, FRICTIONS_BLOCK, _block, 
     _reference
 
 from contact import options, scene as scenes
+from contact.layout import canonical_order
 from contact.loop import ConvergenceError
-from contact.output import canonical_order
 
 #: the loops' reference: fast mode at runs/alart_curnier.py's tolerances (+ ssn_ksp_rtol 1e-12)
 TIGHT_FAST = dict(uzawa_rtol=1e-11, fp_rtol=1e-11, ssn_rtol=1e-13)

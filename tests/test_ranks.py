@@ -20,7 +20,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options, scene as scenes
-from contact.output import canonical_order
+from contact.layout import canonical_order
 
 #: the default solver stops at -newton_rtol 1e-11 of the first residual
 TOL = 1e-8

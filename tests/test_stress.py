@@ -8,7 +8,7 @@ from petsc4py import PETSc
 from test_contact_closed_form import PRESSED
 from test_friction_held import F as F_HELD, P as P_HELD, sheared
 
-from contact import fem, output, scene as scenes, stress
+from contact import fem, layout, scene as scenes, stress
 from contact.mesh import HEX_REF
 
 E, NU, P = 1.0e3, 0.3, 2.0
@@ -133,7 +133,7 @@ def _canonical(comm, xyz, *values):
     """(xyz, values...) of all ranks, sorted by (z, y, x)."""
     mpi = comm.tompi4py()
     xyz = np.concatenate(mpi.allgather(xyz))
-    order = output.canonical_order(xyz)
+    order = layout.canonical_order(xyz)
     return [xyz[order]] + [np.concatenate(mpi.allgather(v))[order] for v in values]
 
 
