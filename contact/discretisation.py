@@ -1,6 +1,7 @@
 """The discrete problem of a scene: mesh, foundation frame, Q1 stiffness, loads, contact set.
 
-scene -> mesh (DMPlex box, a file DMPlex reads, or gmsh; distributed with METIS) -> boundary
+scene -> mesh (a level of hierarchy.py: a box refined in parallel, a file DMPlex reads, or
+gmsh; distributed with METIS) -> boundary
 parts (faces on planes or gmsh physical groups; `mesh.rotate` turns the mesh after they are
 found) -> contact set and its frame (contactset.py, frame.py: a foundation off the axes
 turns the contact nodes' dofs to (t1, t2, n)) -> A (Q1 stiffness in that basis), the load
@@ -24,27 +25,10 @@ DEFAULT_RAMP = (0.0, 1.0)
 class Discretisation:
     """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`."""
 
-    def __init__(self, scene, comm):
+    def __init__(self, scene, comm, hierarchy, level=-1):
         self.scene, self.comm = scene, comm
+        self.hierarchy, self.level = hierarchy, hierarchy.levels[level]
         self._setup()
-
-    def _read_mesh(self):
-        """The serial DMPlex of the scene's mesh: box, a file DMPlex reads, or gmsh (a .geo
-        meshed, or a .msh read, by gmsh's Python API on rank 0; physical groups -> labels)."""
-        m, comm = self.scene["mesh"], self.comm
-        self.physical_names = []
-        kind = m.get("type", "box")
-        if kind != "gmsh":
-            self.skipped.append("gmsh (not a gmsh mesh)")
-        if kind == "gmsh":
-            from . import gmshio                     # gmsh is imported only here
-            params = {"nd": self.nd, **m.get("parameters", {})}
-            dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
-            return dm
-        if kind == "file":
-            return mesh.read_mesh_file(comm, m["file"])
-        cells = [int(c) * self.nd for c in m.get("cells_per_nd", [1, 1, 1])]
-        return mesh.create_box_mesh(comm, cells, m["lower"], m["upper"])
 
     def _part_faces(self, name, part, conn, coords):
         """(nf, 4) local faces of a boundary part: a plane, or a gmsh physical group."""
@@ -80,18 +64,14 @@ class Discretisation:
     def _setup(self):
         sc, comm = self.scene, self.comm
         m = sc["mesh"]
-        self.nd = int(m.get("nd", 1))
+        self.nd = self.level.nd
         self.skipped = []                        # what this scene does not need (reported)
-        self.dm = dm = self._read_mesh()
-        self.partitioner = mesh.distribute(dm)
-        opts = PETSc.Options()
-        for kind, setter in (("vec_type", dm.setVecType), ("mat_type", dm.setMatType)):
-            for name in ("dm_" + kind, kind):          # -dm_vec_type or plain -vec_type
-                if opts.hasName(name):
-                    setter(opts.getString(name))
-                    break
-        mesh.displacement_section(dm)
-        self.conn, self.coords = conn, coords = mesh.cell_vertices(dm)
+        if m.get("type", "box") != "gmsh":
+            self.skipped.append("gmsh (not a gmsh mesh)")
+        lv = self.level                          # the mesh (hierarchy.py): dm, conn, coords
+        self.dm, self.conn, self.coords = dm, conn, coords = lv.dm, lv.conn, lv.coords
+        self.partitioner = self.hierarchy.partitioner
+        self.physical_names = self.hierarchy.physical_names
         mesh.check_cells(comm, conn, coords)
 
         self._parts()

@@ -5,18 +5,15 @@
     F > 0             fixed point on g over Uzawa over the inner solver      `solve_contact`
     loading.steps N   N load increments, each the static problem of the increment
                       (its own load and gap vectors; the discretisation is not touched)
-    -c2f_levels N     first the scene at Nd/2 (itself from Nd/4, ...), its x, l, g
-                      interpolated as the start                               `coarse_start`
+    -c2f_levels N     first the scene on the mesh hierarchy's level Nd/2 (itself from
+                      Nd/4, ...), its x, l, g interpolated as the start  (problem.py)
 The loops are built for each static solve (`Loops`), under the solver mode's preset
 (options.inserted: the preset lasts for that solve only; options given by the user win).
 """
-import copy
-import gc
-
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, options, output, residuals as res, transfer
+from . import fem, options, output, residuals as res
 from .apg import APG
 from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
@@ -92,8 +89,10 @@ class NewtonLoops:
         return l.copy() if self.cs.has_friction else None
 
 
-def solve(pr):
-    """Run what the scene needs on the problem `pr` (problem.py); sets its solution."""
+def solve(pr, coarse_start=None):
+    """Run what the scene needs on the problem `pr` (problem.py); sets its solution.
+    coarse_start(pr): the start of a static contact solve, (l0, g0) with pr.x set, or None
+    (problem.py: the coarse-to-fine start on the mesh hierarchy's coarser levels)."""
     steps = int(pr.scene.get("loading", {}).get("steps", 1))
     if pr.cs is None or pr.cs.size == 0:
         pr.skipped.append("Uzawa and fixed-point loops (no contact node): one KSP solve")
@@ -102,7 +101,7 @@ def solve(pr):
         solve_linear(pr)
         steps = 1
     elif steps == 1:
-        solve_contact(pr, pr.b, pr.cs.gap, coarse_start(pr))
+        solve_contact(pr, pr.b, pr.cs.gap, coarse_start(pr) if coarse_start else None)
         check_solution(pr, pr.b, pr.cs.gap)
     else:
         solve_incremental(pr, steps)
@@ -215,57 +214,6 @@ def check_solution(pr, b, gap):
             f"{inner.title} steps may be too short to move: try a smaller "
             f"-uzawa_r or tighter -{inner.prefix}rtol / -uzawa_rtol")
     pr.check_passed = bool(value <= tol) if tol > 0 else None
-
-
-def auto_levels(nd):
-    """-c2f_levels -1 in the newton mode: halve Nd while the coarser mesh has Nd >= 4 (the
-    Newton steps on the finest mesh then start from nearly the right contact and slip sets)."""
-    levels = 0
-    while nd // 2 >= 4:
-        nd //= 2
-        levels += 1
-    return levels
-
-
-def coarse_start(pr):
-    """Coarse-to-fine start (-c2f_levels N): solve the scene on the mesh nd/2 (itself
-    started from nd/4, ..., N levels), prolong x, l, g to this mesh (Q1 interpolation,
-    contact/transfer.py). Returns (l0, g0) contact Vecs, or None."""
-    from .problem import ContactProblem
-    levels = pr.c2f_levels
-    if levels is None:
-        levels = options.get("c2f_levels", pr.scene)
-    if levels < -1:
-        raise ValueError(f"-c2f_levels must be >= -1 (-1: automatic), got {levels}")
-    if levels == -1:
-        levels = auto_levels(pr.nd) if solver_mode(pr.scene) == "newton" else 0
-    if levels == 0 or pr.nd < 2 or pr.scene["mesh"].get("type", "box") != "box" \
-            or pr.scene.get("loading", {}).get("steps", 1) > 1:
-        return None
-    if pr.frame is not None or "rotate" in pr.scene["mesh"]:
-        note = "coarse-to-fine start (a rotated mesh or foundation: no grid on x, y, z)"
-        if note not in pr.skipped:
-            pr.skipped.append(note)
-        return None
-    sc = copy.deepcopy(pr.scene)
-    sc["mesh"]["nd"] = pr.nd // 2
-    # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of a
-    # coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol
-    with options.inserted({"newton_rtol": "1e-6"}):
-        coarse = ContactProblem(sc, pr.comm, c2f_levels=levels - 1).solve()
-    pr.coarse_runs = coarse.coarse_runs + [
-        {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
-         "iterations": coarse.iterations()}]
-    transfer.prolong_displacement(coarse, pr, coarse.x, pr.x)
-    l0, g0 = pr.cs.vec(), pr.cs.vec()
-    transfer.prolong_contact(coarse, pr, coarse.l, l0)
-    if coarse.g is not None:
-        transfer.prolong_contact(coarse, pr, coarse.g, g0)
-    PETSc.Sys.Print(f"c2f: started Nd = {pr.nd} from the solution at Nd = {coarse.nd}",
-                    comm=pr.comm)
-    del coarse
-    gc.collect()                  # the coarse levels' matrices, before the fine solve
-    return l0, g0
 
 
 def normal_pressure(pr, loops, b, gap):

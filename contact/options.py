@@ -83,9 +83,14 @@ REGISTRY = [
            "problem (default); faithful: the paper's loops; fast: the loops with the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",
            "newton|faithful|fast", ("solver", "mode")),
-    Option("c2f_levels", -1, int, "coarse-to-fine: solve at Nd/2 (from Nd/4, ...) first and "
-           "start from the interpolated x, l, g (box meshes); -1: automatic (newton mode: "
-           "halve while Nd/2 >= 4; the loops: 0)", "N", ("solver", "c2f_levels")),
+    Option("c2f_levels", -1, int, "coarse-to-fine: solve on the mesh hierarchy's levels "
+           "Nd/2 (from Nd/4, ...) first and start from the interpolated x, l, g; -1: automatic "
+           "(newton mode: every coarser level with Nd >= 4; the loops: 0)", "N",
+           ("solver", "c2f_levels")),
+    Option("mesh_refine", -1, int, "box meshes: build the box at Nd/2^K on rank 0, "
+           "distribute it, refine it K times in parallel (Nd a multiple of 2^K); -1: "
+           "automatic, the largest K leaving >= 16 coarse cells per rank (an odd Nd: K = 0, "
+           "the whole box through rank 0)", "K"),
     Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
     Option("debug", False, bool, "show the traceback of an error", ""),
     Option("help", None, bool, "this list", ""),
@@ -168,7 +173,8 @@ PETSC_AT_EXIT = ("log_view", "options_left", "malloc_dump", "malloc_debug", "log
 #: PETSc's to check)
 PETSC_UNDER_SSN = ("ksp_", "pc_", "mg_", "sub_", "mat_", "gamg_")
 KSP_PREFIXES = ("ssn_", "newton_")
-OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "newton_", "c2f_", "solver_", "scene_")
+OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "newton_", "c2f_", "solver_", "scene_",
+                "mesh_")
 #: prefixes of PETSc's own objects and options: never checked against our names
 PETSC_PREFIXES = ("ksp_", "pc_", "mg_", "mat_", "vec_", "dm_", "sub_", "snes_", "ts_",
                   "tao_", "log_", "malloc", "options_", "info", "viewer_", "draw_",

@@ -1,19 +1,26 @@
 """The contact problem of a scene: its discretisation, its solve, its solution.
 
-    pr = ContactProblem(scene, comm)     # discretisation.py, then admissibility.py
+    pr = ContactProblem(scene, comm)     # hierarchy.py, discretisation.py, admissibility.py
     pr.solve()                           # driver.py: what the scene needs
     pr.x, pr.l, pr.g                     # u - u_D (the loops' basis), multiplier, slip bound
     pr.displacement(), pr.iterations(), pr.residuals, pr.normal_force()
 The discrete problem's data (A, b, cs, load_groups, clamped, ...) are the discretisation's
 (`pr.disc`), read through the names below; the solution's fields are this object's.
+Data flow one way: scene -> mesh hierarchy (hierarchy.py: the coarse mesh through rank 0,
+refined in parallel) -> the discretisation of one level -> the solve (driver.py) -> the
+solution. The coarse-to-fine start (`-c2f_levels`) solves the same scene on the hierarchy's
+coarser levels first, each a ContactProblem of its own, and prolongs (transfer.py).
 """
+import copy
+import gc
 import time
 
 from petsc4py import PETSc
 
-from . import admissibility, driver
+from . import admissibility, driver, options, transfer
 from .apg import APG
 from .discretisation import Discretisation
+from .hierarchy import MeshHierarchy
 
 #: the discretisation's fields, read through the problem (tests, output, transfer)
 DISC_FIELDS = ("dm", "nd", "partitioner", "conn", "coords", "parts", "physical_names",
@@ -24,9 +31,11 @@ DISC_FIELDS = ("dm", "nd", "partitioner", "conn", "coords", "parts", "physical_n
 
 class ContactProblem:
     """Builds the discretisation of `scene` on `comm` and checks it; `solve()` runs the
-    loops (c2f_levels: the coarse-to-fine levels, None: -c2f_levels or the scene's)."""
+    loops (c2f_levels: the coarse-to-fine levels, None: -c2f_levels or the scene's).
+    hierarchy, level: a level of an existing mesh hierarchy (the coarse-to-fine start's
+    coarse problems); default: the finest level of the scene's own."""
 
-    def __init__(self, scene, comm=None, c2f_levels=None):
+    def __init__(self, scene, comm=None, c2f_levels=None, hierarchy=None, level=-1):
         t0 = time.perf_counter()
         self.scene, self.comm = scene, comm or PETSc.COMM_WORLD
         self.c2f_levels = c2f_levels
@@ -42,7 +51,11 @@ class ContactProblem:
         stage = PETSc.Log.Stage("Setup")
         stage.push()
         try:
-            self.disc = Discretisation(self.scene, self.comm)
+            if hierarchy is None:
+                hierarchy = MeshHierarchy(self.scene, self.comm, self._c2f_asked())
+            self.hierarchy = hierarchy
+            self.level = level % len(hierarchy.levels)
+            self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level)
             self.skipped = self.disc.skipped      # what this scene does not need (reported)
             self.friction_held = admissibility.check(self.disc)
             self.x = self.b.duplicate()           # the DM's Vec type (cuda, ...), as b
@@ -57,11 +70,66 @@ class ContactProblem:
         stage = PETSc.Log.Stage("Solve")
         stage.push()
         try:
-            driver.solve(self)
+            driver.solve(self, ContactProblem._coarse_start)
         finally:
             stage.pop()
         self.time_solve = time.perf_counter() - t0
         return self
+
+    # -- the coarse-to-fine start ----------------------------------------------------------
+    def _c2f_asked(self):
+        """-c2f_levels (or the scene's, or this problem's c2f_levels), checked."""
+        levels = self.c2f_levels
+        if levels is None:
+            levels = options.get("c2f_levels", self.scene)
+        if levels < -1:
+            raise ValueError(f"-c2f_levels must be >= -1 (-1: automatic), got {levels}")
+        return levels
+
+    def _coarse_start(self):
+        """Solve the scene on the hierarchy's next coarser level (itself started from the
+        one below, as many levels as asked: -1, automatic, is every coarser level with
+        Nd >= 4 in the newton mode and none for the loops), prolong x, l, g to this mesh
+        (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None."""
+        levels = self._c2f_asked()
+        h = self.hierarchy
+        if levels == -1:
+            levels = sum(lv.nd >= 4 for lv in h.levels[:self.level]) \
+                if driver.solver_mode(self.scene) == "newton" else 0
+        if levels > self.level:
+            note = (f"coarse-to-fine levels beyond {self.level} (the mesh hierarchy has "
+                    f"{self.level} below Nd = {self.nd}: "
+                    + ("Nd has no more factors of 2)" if h.kind == "box"
+                       else "a mesh file is one level)"))
+            if note not in self.skipped:
+                self.skipped.append(note)
+            levels = self.level
+        if levels == 0 or self.scene.get("loading", {}).get("steps", 1) > 1:
+            return None
+        j = self.level - 1
+        sc = copy.deepcopy(self.scene)
+        sc["mesh"]["nd"] = h.levels[j].nd
+        # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of
+        # a coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol
+        with options.inserted({"newton_rtol": "1e-6"}):
+            coarse = ContactProblem(sc, self.comm, levels - 1, h, j).solve()
+        self.coarse_runs = coarse.coarse_runs + [
+            {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
+             "iterations": coarse.iterations()}]
+        P = h.prolongation(self.level)
+        transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
+        l0, g0 = self.cs.vec(), self.cs.vec()
+        transfer.prolong_contact(P, coarse, self, coarse.l, l0)
+        if coarse.g is not None:
+            transfer.prolong_contact(P, coarse, self, coarse.g, g0)
+        P.destroy()
+        PETSc.Sys.Print(f"c2f: started Nd = {self.nd} from the solution at Nd = {coarse.nd}",
+                        comm=self.comm)
+        del coarse
+        gc.collect()              # the coarse levels' matrices, before the fine solve
+        if self.level == len(h.levels) - 1:
+            h.release_below(self.level)              # their meshes too
+        return l0, g0
 
     # -- the loops of the last solve -------------------------------------------------------
     @property

@@ -30,6 +30,8 @@ def summary(problem, time_total):
         "mode": problem.mode,
         "solver_mode": problem.solver_mode,
         "partitioner": problem.partitioner,
+        "mesh": problem.hierarchy.describe(),        # hierarchy.py: how it was built
+        "mesh_levels": [lv.nd for lv in problem.hierarchy.levels],
         "dofs": problem.n_dofs,
         "nonzeros": int(problem.A.getInfo()["nz_used"]),
         "contact_nodes": problem.cs.n_paper if problem.cs is not None else 0,
@@ -92,7 +94,7 @@ def print_summary(comm, s, outdir=None):
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
              f"{s['converged']}",
-             f"loading: {s['loading']}"]
+             f"loading: {s['loading']}", f"mesh: {s['mesh']}"]
     if s["skipped"]:
         lines.append("skipped: " + "; ".join(s["skipped"]))
     if outdir:

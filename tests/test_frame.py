@@ -178,12 +178,3 @@ def test_bad_frame_input(bad, msg):
         sc["mesh"]["rotate"] = bad["rotate"]
     with pytest.raises(SceneError, match=msg):
         scenes.validate(sc)
-
-
-def test_coarse_to_fine_start_is_skipped_on_a_turned_mesh(comm):
-    """The c2f transfer works on an x, y, z grid of the contact plane: a turned scene
-    solves without it and says so."""
-    from contact.problem import ContactProblem
-    sc, _ = scenes.turned(paper_scene(2, mode="fast"), AXIS, DEGREES)
-    pr = ContactProblem(sc, comm, c2f_levels=1).solve()
-    assert pr.coarse_runs == [] and any("coarse-to-fine" in s for s in pr.skipped)

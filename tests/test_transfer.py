@@ -1,25 +1,18 @@
-"""Coarse-to-fine transfer: exact on trilinear (displacement) and bilinear (contact) fields."""
+"""The mesh hierarchy (contact/hierarchy.py) and the coarse-to-fine transfer on it
+(contact/transfer.py): levels born by parallel refinement are the box meshes built whole,
+P reproduces trilinear displacements and bilinear contact fields exactly, and the solve on
+a refined mesh is the solve on the mesh built whole. Runs on 1, 2 and 4 ranks."""
 import numpy as np
 import pytest
-from conftest import paper_scene
+from conftest import gather, paper_scene, rel_err, solve
+from mpi4py import MPI
 from petsc4py import PETSc
 
-from contact import transfer
+from contact import options, scene as scenes, transfer
+from contact.hierarchy import MIN_CELLS_PER_RANK, MeshHierarchy, refinements
 from contact.problem import ContactProblem
 
-PAIRS = [(2, 4), (2, 3), (3, 2)]           # nested, non-nested, fine-to-coarse
 C = np.array([1.0, -2.0, 0.5])
-
-
-@pytest.fixture(scope="module")
-def problems():
-    cache = {}
-
-    def get(nd):
-        if nd not in cache:
-            cache[nd] = ContactProblem(paper_scene(nd=nd), PETSc.COMM_WORLD)
-        return cache[nd]
-    return get
 
 
 def u_exact(xyz, shift=0.0):
@@ -37,84 +30,122 @@ def coords(pr):
     return pr.coordinates.getArray(readonly=True).reshape(-1, 3)
 
 
-def prolong(coarse, fine, shift=0.0):
+@pytest.fixture(scope="module")
+def pair():
+    """The beam at Nd = 4 with its level Nd = 2 (-c2f_levels 1 keeps it): (coarse, fine, P)."""
+    sc = paper_scene(nd=4)
+    fine = ContactProblem(sc, PETSc.COMM_WORLD, c2f_levels=1)
+    h = fine.hierarchy
+    csc = paper_scene(nd=2)
+    coarse = ContactProblem(csc, PETSc.COMM_WORLD, 0, h, fine.level - 1)
+    return coarse, fine, h.prolongation(fine.level)
+
+
+def test_refinements_rule():
+    """k: Nd = Nd0 2^k, Nd0 with >= MIN_CELLS_PER_RANK cells per rank; -mesh_refine wins."""
+    beam = (3, 1, 1)
+    assert refinements(80, beam, 2) == 4                 # Nd0 = 5: 375 cells
+    assert refinements(80, beam, 64) == 3                # Nd0 = 10: 3000 >= 16 * 64
+    assert refinements(30, beam, 2) == 1                 # Nd0 = 15
+    assert refinements(7, beam, 1) == 0                  # odd: the whole box on rank 0
+    assert refinements(4, beam, 2) == 0                  # 3 * 2^3 = 24 < 32 cells
+    assert refinements(4, beam, 2, at_least=2) == 2      # the coarse-to-fine levels asked
+    assert refinements(6, beam, 1, at_least=3) == 1      # as far as Nd's factors of 2 allow
+    assert refinements(8, beam, 1, refine=0) == 0
+    for nd, ranks in ((80, 2), (40, 4), (96, 8)):
+        k = refinements(nd, beam, ranks)
+        assert 3 * (nd >> k) ** 3 >= MIN_CELLS_PER_RANK * ranks
+        assert nd % (1 << (k + 1)) or 3 * (nd >> (k + 1)) ** 3 < MIN_CELLS_PER_RANK * ranks
+    with pytest.raises(ValueError, match="not a multiple of"):
+        refinements(6, beam, 1, refine=2)
+
+
+def test_levels_are_the_boxes_built_whole():
+    """Every level of the Nd = 8 beam refined from Nd = 1 has the vertices and cells of the
+    box built whole at its Nd (canonical order), and its cells are not inverted."""
+    with options.inserted({"mesh_refine": "3"}):
+        refined = ContactProblem(paper_scene(nd=8), PETSc.COMM_WORLD)
+    assert [lv.nd for lv in refined.hierarchy.levels] == [1, 2, 4, 8]
+    with options.inserted({"mesh_refine": "0"}):
+        whole = ContactProblem(paper_scene(nd=8), PETSc.COMM_WORLD)
+    assert [lv.nd for lv in whole.hierarchy.levels] == [8]
+    Xr, _, Cr = gather(refined)
+    Xw, _, Cw = gather(whole)
+    assert refined.n_dofs == whole.n_dofs == 3 * 25 * 9 * 9
+    assert np.array_equal(Xr, Xw)                      # to the bit: snapped to the lattice
+    assert np.array_equal(np.sort(np.sort(Cr, axis=1), axis=0),
+                          np.sort(np.sort(Cw, axis=1), axis=0))
+
+
+def test_prolongation_is_exact_on_trilinear_fields(pair):
+    """P u_H = u at the fine nodes for a trilinear u (Q1 reproduces it), rows sum to 1."""
+    coarse, fine, P = pair
     xc = coarse.x.duplicate()
-    xc.setArray(u_exact(coords(coarse), shift).ravel())
+    xc.setArray(u_exact(coords(coarse), shift=1.0).ravel())
     xf = fine.x.duplicate()
-    xf.set(np.nan)
-    transfer.prolong_displacement(coarse, fine, xc, xf)
-    return xf.getArray(readonly=True).copy(), xf.getOwnershipRange()[0]
+    P.mult(xc, xf)
+    assert np.abs(xf.getArray() - u_exact(coords(fine), shift=1.0).ravel()).max() < 1e-12 * 50
+    one, s = P.createVecRight(), P.createVecLeft()
+    one.set(1.0)
+    P.mult(one, s)
+    assert np.abs(s.getArray() - 1.0).max() < 1e-14
+    # a fine vertex at grid index (i, j, k) has 2^(number of odd indices) weights: 1 at a
+    # coarse vertex, 2 at an edge midpoint, 4 at a face centre, 8 at a cell centre
+    i, j, k = np.meshgrid(np.arange(13), np.arange(5), np.arange(5), indexing="ij")
+    want = 3 * int((2 ** (i % 2 + j % 2 + k % 2)).sum())
+    assert int(P.getInfo()["nz_used"]) == want             # summed over ranks
 
 
-@pytest.mark.parametrize("nc, nf", PAIRS)
-def test_prolong_displacement_trilinear(problems, nc, nf):
-    coarse, fine = problems(nc), problems(nf)
-    xf, rstart = prolong(coarse, fine)
-    assert np.all(np.isfinite(xf))
-    assert np.abs(xf - u_exact(coords(fine)).ravel()).max() <= 1e-12 * 42
-    assert np.all(xf[fine.clamped - rstart] == 0.0)
+def test_prolong_displacement_zeroes_clamped(pair):
+    """A coarse field nonzero on x = 0: the clamped fine dofs exactly 0, the others exact."""
+    coarse, fine, P = pair
+    xc = coarse.x.duplicate()
+    xc.setArray(u_exact(coords(coarse), shift=1.0).ravel())
+    xf = fine.x.duplicate()
+    transfer.prolong_displacement(P, coarse, fine, xc, xf)
+    a, r0 = xf.getArray(), xf.getOwnershipRange()[0]
+    assert np.all(a[np.asarray(fine.clamped) - r0] == 0.0)
+    free = np.setdiff1d(np.arange(a.size), np.asarray(fine.clamped) - r0)
+    assert np.abs(a[free] - u_exact(coords(fine), 1.0).ravel()[free]).max() < 1e-12 * 50
 
 
-@pytest.mark.parametrize("nc, nf", PAIRS[:2])
-def test_prolong_displacement_zeroes_clamped(problems, nc, nf):
-    """A coarse field nonzero on x = 0: clamped fine dofs exactly 0, the others exact."""
-    coarse, fine = problems(nc), problems(nf)
-    xf, rstart = prolong(coarse, fine, shift=1.0)
-    ref = u_exact(coords(fine), shift=1.0).ravel()
-    free = np.ones(xf.size, dtype=bool)
-    free[fine.clamped - rstart] = False
-    assert np.all(xf[~free] == 0.0)
-    assert np.abs(xf[free] - ref[free]).max() <= 1e-12 * 42
-    n_clamped = fine.comm.tompi4py().allreduce(int((~free).sum()))
-    assert n_clamped == 3 * (nf + 1) ** 2                 # the whole face x = 0
-
-
-@pytest.mark.parametrize("nc, nf", PAIRS)
-def test_prolong_contact_bilinear(problems, nc, nf):
-    coarse, fine = problems(nc), problems(nf)
+def test_prolong_contact_bilinear_and_convex(pair):
+    """Contact fields: exact for a bilinear field where the parent face's 4 corners are
+    contact nodes; next to the clamped edge x = 0 (its nodes are not contact nodes) the
+    value of the first coarse line; constants everywhere."""
+    coarse, fine, P = pair
     vc = coarse.cs.vec(g_exact(coarse.cs.coordinates))
-    vf = fine.cs.vec(np.nan)
-    transfer.prolong_contact(coarse, fine, vc, vf)
-    got = vf.getArray(readonly=True)
-    xyz = fine.cs.coordinates
-    h = 1.0 / nc                        # the first coarse contact line (x = 0 is clamped)
-    covered = xyz[:, 0] >= h - 1e-12
-    assert np.abs(got[covered] - g_exact(xyz[covered])).max(initial=0.0) <= 1e-12 * 10
-    # between the clamped edge and x = h: the value on the line x = h (projection)
-    edge = xyz[~covered].copy()
-    edge[:, 0] = h
-    assert np.abs(got[~covered] - g_exact(edge)).max(initial=0.0) <= 1e-12 * 10
-    comm = fine.comm.tompi4py()
-    # fine contact lines x = k / nf, k = 1..3 nf; covered: k >= nf / nc
-    assert comm.allreduce(int(covered.sum())) == (nf + 1) * (3 * nf + 1 - int(np.ceil(nf / nc)))
+    vf = fine.cs.vec()
+    transfer.prolong_contact(P, coarse, fine, vc, vf)
+    X = fine.cs.coordinates
+    got, want = vf.getArray(), g_exact(X)
+    h = 3.0 / (3 * 2)                                  # the coarse cell's length in x
+    inner = X[:, 0] >= h - 1e-12
+    assert np.abs(got[inner] - want[inner]).max() < 1e-12
+    edge = ~inner                                      # x = h/2: the line x = h's values
+    assert np.abs(got[edge] - g_exact(np.column_stack([np.full(edge.sum(), h),
+                                                       X[edge, 1:]]))).max(initial=0) < 1e-12
+    transfer.prolong_contact(P, coarse, fine, coarse.cs.vec(7.0), vf)
+    assert np.abs(vf.getArray() - 7.0).max(initial=0.0) < 1e-13
 
 
-def test_bilinear_masked_missing_corner_and_outside():
-    lines = (np.array([0.0, 1.0, 1.5]), np.array([0.0, 1.0, 3.0]))
-    X, Y = np.meshgrid(*lines, indexing="ij")
-    v = X + 10 * Y
-    mask = np.ones(v.shape, dtype=bool)
-    mask[2, 2] = False                                       # node (1.5, 3) missing
-    grid = np.where(mask, v, 0.0)
-    pts = np.array([[0.5, 0.5],          # full cell: bilinear, exact
-                    [1.25, 0.5],         # full cell
-                    [-1.0, 0.5],         # outside: projected onto x = 0
-                    [1.2, 2.0],          # cell with (1.5, 3) missing: renormalised weights
-                    [1.5, 3.0]])         # on the missing node: nearest present node (1, 3)
-    got = transfer.bilinear_masked(lines, grid, mask, pts)
-    w = np.array([0.6 * 0.5, 0.4 * 0.5, 0.6 * 0.5])          # (1,1), (1.5,1), (1,3)
-    ref = [5.5, 6.25, 5.0, (w @ [11.0, 11.5, 31.0]) / w.sum(), 31.0]
-    assert np.allclose(got, ref, rtol=0, atol=1e-13)
-    # constants are reproduced everywhere
-    const = transfer.bilinear_masked(lines, np.where(mask, 7.0, 0.0), mask, pts)
-    assert np.allclose(const, 7.0, rtol=0, atol=1e-14)
+def test_refined_mesh_solves_as_the_whole_mesh():
+    """The default solver on the Nd = 8 beam: refined from Nd = 2 in parallel, or built
+    whole on rank 0 (-mesh_refine 0), the same answer (c2f start off in both)."""
+    sc = paper_scene(nd=8, mode="newton")
+    with options.inserted({"mesh_refine": "2", "c2f_levels": "0"}):
+        a = solve(sc)
+    with options.inserted({"mesh_refine": "0", "c2f_levels": "0"}):
+        b = solve(sc)
+    assert rel_err(gather(a)[1], gather(b)[1]) < 1e-9
 
 
-def test_trilinear_nonuniform_lines():
-    rng = np.random.default_rng(0)
-    lines = [np.array([0.0, 0.3, 1.0]), np.array([-1.0, 2.0]), np.array([0.0, 0.1, 0.5, 2.0])]
-    X, Y, Z = np.meshgrid(*lines, indexing="ij")
-    f = lambda x, y, z: 1 + x - 2 * y + z + x * y * z - 3 * x * z   # noqa: E731
-    pts = np.column_stack([rng.uniform(ln[0], ln[-1], 50) for ln in lines])
-    got = transfer.trilinear(lines, f(X, Y, Z)[..., None], pts)[:, 0]
-    assert np.allclose(got, f(*pts.T), rtol=0, atol=1e-12)
+def test_coarse_to_fine_start_on_a_turned_mesh(comm):
+    """The hierarchy's P needs no grid on x, y, z: a turned scene (mesh and foundation)
+    gets the coarse-to-fine start and the cold start's answer."""
+    from test_frame import AXIS, DEGREES
+    sc, _ = scenes.turned(paper_scene(4, mode="newton"), AXIS, DEGREES)
+    c2f = ContactProblem(sc, comm, c2f_levels=1).solve()
+    cold = ContactProblem(sc, comm, c2f_levels=0).solve()
+    assert [r["nd"] for r in c2f.coarse_runs] == [2]
+    assert rel_err(gather(c2f)[1], gather(cold)[1]) < 1e-8

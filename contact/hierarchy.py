@@ -1,0 +1,253 @@
+"""The meshes of a scene, born parallel: one coarse mesh through rank 0, the rest refined in
+parallel.
+
+    box    the box at Nd0 = Nd / 2^k cells_per_nd is built on rank 0, distributed (METIS,
+           mesh.distribute), then refined k times in parallel (DMPlex regular refinement:
+           each hexahedron into 8, on the rank that owns it); the levels Nd0, 2 Nd0, ...,
+           Nd are the coarse-to-fine start's meshes (none is rebuilt from scratch)
+    gmsh   the file as gmsh meshes it (its own Nd), read on rank 0 and distributed: one level
+    file   a mesh file PETSc reads, as read: one level
+k (`-mesh_refine K`, default -1: automatic) is the largest k with Nd a multiple of 2^k whose
+coarse box still has MIN_CELLS_PER_RANK cells per rank (the partition of the fine mesh is the
+coarse one's, refined: its balance is the coarse one's), and at least the coarse-to-fine
+levels asked for (`-c2f_levels N`). An odd Nd has k = 0: the box is built whole on rank 0
+and distributed, as before (say Nd = m 2^k for a parallel set-up).
+
+Each level holds its uninterpolated DMPlex (cells and vertices, 3 dofs per vertex), its cell
+connectivity and vertex coordinates (mesh.cell_vertices). `prolongation(j)` is the Q1
+interpolation from level j - 1 to level j as a Mat (block size 3): a fine vertex is a coarse
+vertex, an edge or face midpoint or a cell centre of its parent cell (the refinement's child
+cells 8 p .. 8 p + 7 of coarse cell p, checked), so each row holds 1, 2, 4 or 8 weights of
+the parent's vertices. It is assembled from local data only (no array of global size).
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import mesh, options
+from .mesh import HEX_REF, MeshError
+
+#: the automatic k keeps at least this many coarse cells per rank
+MIN_CELLS_PER_RANK = 16
+#: fine vertices per chunk when locating them in their parent cells
+CHUNK = 65536
+
+
+def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0):
+    """k of the module docstring: Nd = Nd0 2^k. refine >= 0: that k (ValueError when Nd is
+    not a multiple of 2^k); at_least: the coarse-to-fine levels asked for (as many as Nd's
+    factors of 2 allow)."""
+    if refine >= 0:
+        if nd % (1 << refine):
+            raise ValueError(f"-mesh_refine {refine}: Nd = {nd} is not a multiple of "
+                             f"2^{refine} = {1 << refine}")
+        return refine
+    cells = int(np.prod(cells_per_nd))
+    k = 0
+    while nd % (1 << (k + 1)) == 0 and (
+            cells * (nd >> (k + 1)) ** 3 >= MIN_CELLS_PER_RANK * ranks or k < at_least):
+        k += 1
+    return k
+
+
+class Level:
+    """One mesh of the hierarchy: nd, the uninterpolated DMPlex with its displacement
+    section, conn (nc, 8) local vertex indices and coords (nv, 3) local coordinates."""
+
+    def __init__(self, nd, dm):
+        self.nd, self.dm = nd, dm
+        mesh.displacement_section(dm)
+        self.conn, self.coords = mesh.cell_vertices(dm)
+
+    def destroy(self):
+        self.dm.destroy()
+        self.dm = self.conn = self.coords = None
+
+
+class MeshHierarchy:
+    """The levels of `scene`'s mesh on `comm`, coarse to fine (see the module docstring).
+    c2f_levels: the coarse-to-fine levels the solve asks for (the hierarchy has at least
+    these many below the finest, as far as Nd's factors of 2 allow)."""
+
+    def __init__(self, scene, comm, c2f_levels=0):
+        m = scene["mesh"]
+        self.comm = comm
+        self.kind = m.get("type", "box")
+        self.physical_names = []
+        nd = int(m.get("nd", 1))
+        refine = options.get("mesh_refine")
+        if refine < -1:
+            raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
+        if self.kind == "box":
+            per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])]
+            k = refinements(nd, per, comm.getSize(), refine, max(c2f_levels, 0))
+            nd0 = nd >> k
+            dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
+        else:
+            k, nd0 = 0, nd
+            if self.kind == "gmsh":
+                from . import gmshio                     # gmsh is imported only here
+                params = {"nd": nd, **m.get("parameters", {})}
+                dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
+            else:
+                dm = mesh.read_mesh_file(comm, m["file"])
+        self.refinements = k
+        self.partitioner = mesh.distribute(dm)
+        self.levels = []
+        if k == 0:
+            self.levels.append(Level(nd0, self._typed(dm)))
+            return
+        dm.interpolate()                                  # DMRefine needs faces and edges
+        for j in range(k + 1):
+            if j:
+                fine = dm.refine()
+                dm.destroy()
+                dm = fine
+            lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
+            _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
+            self.levels.append(lv)
+        dm.destroy()
+
+    @staticmethod
+    def _typed(dm):
+        """The Vec and Mat types of -dm_vec_type / -vec_type, -dm_mat_type / -mat_type."""
+        opts = PETSc.Options()
+        for kind, setter in (("vec_type", dm.setVecType), ("mat_type", dm.setMatType)):
+            for name in ("dm_" + kind, kind):
+                if opts.hasName(name):
+                    setter(opts.getString(name))
+                    break
+        return dm
+
+    @property
+    def finest(self):
+        return self.levels[-1]
+
+    def describe(self):
+        """One line: how the mesh was made (for the console and summary.json)."""
+        nd0 = self.levels[0].nd
+        if self.kind != "box":
+            return f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
+        if self.refinements == 0:
+            return (f"box built whole on rank 0 at Nd = {nd0}, distributed "
+                    f"({self.partitioner})")
+        return (f"box built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
+                f"refined {self.refinements} times in parallel")
+
+    def release_below(self, j):
+        """Free the levels coarser than j (after the coarse-to-fine start)."""
+        for lv in self.levels[:j]:
+            if lv.dm is not None:
+                lv.destroy()
+
+    def prolongation(self, j):
+        """P (Mat, block size 3): level j - 1 -> level j, Q1 interpolation (a new Mat)."""
+        return prolongation(self.levels[j - 1], self.levels[j])
+
+
+def _snap_to_box(level, cells, lower, upper):
+    """The level's vertex coordinates on the box's lattice, lower + i (upper - lower) / n as
+    DMPlexCreateBoxMesh writes them: a refined vertex is a mean of its parent's (an edge's
+    midpoint, ...), which rounds differently from vertex to vertex along one grid line;
+    snapped, the refined box is the box built whole, to the bit (canonical orders, which
+    sort by coordinates, rely on it)."""
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    h = (hi - lo) / np.asarray(cells, dtype=float)
+    x = level.coords
+    snapped = lo + h * np.rint((x - lo) / h)
+    if x.size and np.abs(snapped - x).max() > 1e-9 * np.abs(h).min():
+        raise MeshError("a refined vertex is off the box's lattice")
+    level.coords = snapped
+    v = level.dm.getCoordinatesLocal()
+    v.setArray(snapped.ravel())
+    level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
+
+
+def uninterpolated(dm):
+    """A new DMPlex of dm's cells and vertices (cones = the 8 vertices in HEX_REF order),
+    with dm's coordinates and point SF (DMPlexUninterpolate leaves the coordinates out)."""
+    u = dm.clone()
+    u.uninterpolate()                                      # in place: u is the new DM
+    u.getCoordinateDM().setSection(dm.getCoordinateSection())
+    u.setCoordinatesLocal(dm.getCoordinatesLocal())
+    return u
+
+
+def _shape(xi):
+    """Trilinear shape functions at reference points xi (n, 3): (n, 8)."""
+    return np.prod(1.0 + xi[:, None, :] * HEX_REF[None, :, :], axis=2) / 8.0
+
+
+#: the 27 points of a refined cell: vertices, edge and face midpoints and centre
+_XI27 = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],
+                 dtype=float)
+_N27 = _shape(_XI27)                                       # (27, 8)
+
+
+def _owned_blocks(dm):
+    """(global block index of every local vertex, owned mask, owned block range)."""
+    lg = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
+    g = dm.getGlobalVec()
+    lo, hi = (i // 3 for i in g.getOwnershipRange())
+    dm.restoreGlobalVec(g)
+    return lg, (lg >= lo) & (lg < hi), (lo, hi)
+
+
+def prolongation(coarse, fine):
+    """The Q1 interpolation Mat from Level `coarse` to Level `fine` (its regular
+    refinement): rows the owned fine dofs, 3 x 3 blocks w I."""
+    comm = fine.dm.getComm()
+    ncc, ncf = coarse.conn.shape[0], fine.conn.shape[0]
+    if ncf != 8 * ncc:
+        raise MeshError(f"level {fine.nd} is not the regular refinement of level {coarse.nd}"
+                        f" on this rank ({ncf} cells, {ncc} coarse)")
+    lgf, ownf, (f0, f1) = _owned_blocks(fine.dm)
+    lgc, _, (c0, c1) = _owned_blocks(coarse.dm)
+    # each owned fine vertex once, with a fine cell holding it (and so its parent cell)
+    flat = fine.conn.ravel()
+    verts, first = np.unique(flat, return_index=True)
+    keep = ownf[verts]
+    verts, cell = verts[keep], first[keep] // 8
+    parent = cell // 8                                     # DMPlex: children 8p .. 8p + 7
+    nv = verts.size
+    xi = np.empty((nv, 3))
+    worst = 0.0
+    for s in range(0, nv, CHUNK):
+        Xp = coarse.coords[coarse.conn[parent[s:s + CHUNK]]]           # (n, 8, 3)
+        cand = np.einsum("qa,nai->nqi", _N27, Xp)                      # (n, 27, 3)
+        d = np.linalg.norm(cand - fine.coords[verts[s:s + CHUNK], None, :], axis=2)
+        q = np.argmin(d, axis=1)
+        h = np.ptp(Xp, axis=1).max(axis=1)
+        worst = max(worst, float((d[np.arange(q.size), q] / h).max(initial=0.0)))
+        xi[s:s + CHUNK] = _XI27[q]
+    if comm.tompi4py().allreduce(worst, op=MPI.MAX) > 1e-8:
+        raise MeshError(f"level {fine.nd}: a vertex is not a vertex, edge or face midpoint "
+                        f"or centre of its parent cell (relative distance {worst:.2e})")
+    W = _shape(xi)                                         # (nv, 8)
+    cols = lgc[coarse.conn[parent]]                        # (nv, 8) global coarse blocks
+    rows = lgf[verts]
+    nz = np.abs(W) > 1e-14
+    order = np.argsort(rows, kind="stable")                # owned rows in global order
+    if not np.array_equal(rows[order], np.arange(f0, f1)):
+        raise MeshError(f"level {fine.nd}: the owned vertices are not all in local cells")
+    W, cols, nz = W[order], cols[order], nz[order]
+    cnt = nz.sum(axis=1)                                   # 1, 2, 4 or 8 per vertex
+    # scalar CSR of P (x) I3: row 3 v + i holds w_a at columns 3 c_a + i
+    Wn = W[nz]                                             # (nnz,) row-major
+    Cn = cols[nz]
+    ptr = np.concatenate([[0], np.cumsum(cnt)])
+    rowlen = np.repeat(cnt, 3)
+    I = np.concatenate([[0], np.cumsum(rowlen)]).astype(PETSc.IntType)
+    seg = np.repeat(np.arange(nv), cnt)                    # vertex of each nonzero
+    J = np.empty(3 * Wn.size, dtype=PETSc.IntType)
+    V = np.empty(3 * Wn.size)
+    base = 3 * ptr[seg]                                    # where vertex v's rows start
+    off = np.arange(Wn.size) - ptr[seg]                    # position within the vertex
+    for i in range(3):
+        pos = base + i * cnt[seg] + off
+        J[pos] = 3 * Cn + i
+        V[pos] = Wn
+    P = PETSc.Mat().createAIJ(size=((3 * nv, PETSc.DETERMINE), (3 * (c1 - c0), PETSc.DETERMINE)),
+                              bsize=3, csr=(I, J, V), comm=comm)
+    P.assemble()
+    return P
