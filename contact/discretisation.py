@@ -12,7 +12,6 @@ vectors, and the solution lives in the problem (problem.py).
 """
 import numpy as np
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from . import fem, mesh
 from .contactset import ContactSet

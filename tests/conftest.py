@@ -58,6 +58,18 @@ def gather(problem):
     return problem.comm.tompi4py().bcast(res, root=0)
 
 
+def fields(problem):
+    """Displacement (n, 3) and contact pressure (m,) in canonical order (coordinates), on
+    every rank."""
+    from contact.layout import canonical_order
+    u = gather(problem)[1]
+    parts = problem.comm.tompi4py().allgather(
+        (np.asarray(problem.cs.coordinates).reshape(-1, 3), problem.cs.local_array(problem.l)))
+    C = np.concatenate([c for c, _ in parts])
+    L = np.concatenate([v for _, v in parts])
+    return u, L[canonical_order(C)]
+
+
 @pytest.fixture
 def comm():
     return PETSc.COMM_WORLD

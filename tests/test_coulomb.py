@@ -23,13 +23,12 @@ import os
 
 import numpy as np
 import pytest
-from conftest import PAPER, ROOT, gather, paper_scene, rel_err, solve
+from conftest import PAPER, ROOT, fields, gather, paper_scene, rel_err, solve
 from petsc4py import PETSc
 from test_independent_reference import FRICTIONS_BEAM, FRICTIONS_BLOCK, _block, _compare, \
     _reference
 
 from contact import options, scene as scenes
-from contact.layout import canonical_order
 from contact.loop import ConvergenceError
 
 #: the loops' reference: fast mode at runs/alart_curnier.py's tolerances (+ ssn_ksp_rtol 1e-12)
@@ -54,20 +53,10 @@ def _fast_reference(sc, comm=None):
         return solve(scenes.validate(sc), comm)
 
 
-def _fields(pr):
-    """Displacement (n,3) and contact pressure (m,) in canonical order, on every rank."""
-    u = gather(pr)[1]
-    parts = pr.comm.tompi4py().allgather((np.asarray(pr.cs.coordinates).reshape(-1, 3),
-                                          pr.cs.local_array(pr.l)))
-    C = np.concatenate([c for c, _ in parts])
-    L = np.concatenate([v for _, v in parts])
-    return u, L[canonical_order(C)]
-
-
 def _diff(a, b, p_floor=0.0):
     """Relative differences (u, pressure) of two solves of the same scene."""
-    ua, la = _fields(a)
-    ub, lb = _fields(b)
+    ua, la = fields(a)
+    ub, lb = fields(b)
     dp = np.abs(la - lb).max() / max(np.abs(lb).max(), p_floor, 1e-300)
     return rel_err(ua, ub), dp
 
@@ -127,7 +116,7 @@ def test_beam_against_the_loops(case):
     du, dp = _diff(pr, ref, P_BEAM)
     assert du < TOL and dp < TOL, (du, dp)
     assert pr.converged and max(pr.residuals.values()) < 1e-6, pr.residuals
-    lref = _fields(ref)[1]
+    lref = fields(ref)[1]
     assert int((lref <= 1e-8 * P_BEAM).sum()) == n_open      # the case is what it says
     if case == "F100_stick":       # full stick: no closed node moves along the foundation
         xyz, u = gather(pr)[:2]

@@ -15,12 +15,11 @@ import os
 
 import numpy as np
 import pytest
-from conftest import PAPER, ROOT, block_scene, gather, paper_scene, rel_err, solve
+from conftest import PAPER, ROOT, block_scene, fields, paper_scene, rel_err, solve
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options, scene as scenes
-from contact.layout import canonical_order
 
 #: the default solver stops at -newton_rtol 1e-11 of the first residual
 TOL = 1e-8
@@ -30,23 +29,13 @@ TOL = 1e-8
 EXACT = {"newton_ew": "false", "newton_ksp_rtol": "1e-12"}
 
 
-def _fields(pr):
-    """Displacement (n, 3) and pressure (m,) in canonical order, on every rank."""
-    u = gather(pr)[1]
-    parts = pr.comm.tompi4py().allgather((np.asarray(pr.cs.coordinates).reshape(-1, 3),
-                                          pr.cs.local_array(pr.l)))
-    C = np.concatenate([c for c, _ in parts])
-    L = np.concatenate([v for _, v in parts])
-    return u, L[canonical_order(C)]
-
-
 def _compare(sc, opts=None):
     """sc solved on COMM_WORLD and on COMM_SELF: (du, dp, parallel, serial)."""
     with options.inserted(opts or {}):
         par = solve(scenes.validate(sc), PETSc.COMM_WORLD)
         ser = solve(scenes.validate(sc), PETSc.COMM_SELF)
-    up, lp = _fields(par)
-    us, ls = _fields(ser)
+    up, lp = fields(par)
+    us, ls = fields(ser)
     assert up.shape == us.shape and lp.shape == ls.shape
     return rel_err(up, us), np.abs(lp - ls).max() / max(np.abs(ls).max(), 1e-300), par, ser
 

@@ -9,7 +9,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options, scene as scenes, transfer
-from contact.hierarchy import MIN_CELLS_PER_RANK, MeshHierarchy, refinements
+from contact.hierarchy import MIN_CELLS_PER_RANK, refinements
 from contact.problem import ContactProblem
 
 C = np.array([1.0, -2.0, 0.5])
