@@ -16,17 +16,19 @@ active nodes, dx_t = -x_t on stick nodes; MatZeroRows, columns kept), and at sli
 with c = F a_n / |z| in [0, 1), n = z/|z| and P = I - n n^T, the rows multiplied by
 (I - c P)^-1 = I + c/(1-c) P:
     A_t - F n A_n + w rho c/(1-c) P (on x_t) + w F rho n (on x_n)
-(nonsymmetric through F n A_n: GMRES, right-preconditioned, with GAMG; options prefix
+(nonsymmetric through F n A_n: GMRES, right-preconditioned, with geometric multigrid on
+the mesh hierarchy (multigrid.py; GAMG on a mesh of one level); options prefix
 -newton_). A backtracking line search on the residual norm globalises the step (the full
 step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)|| (-newton_rtol).
 From x = 0 the first step holds every active node (glued): from there the slip directions
 are the solution's own, not the bare load's (a body held by friction alone would otherwise
 get a singular first Jacobian).
 The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew). The
-preconditioner (GAMG) of the first step is kept while the solves stay short
+preconditioner of the first step is kept while the solves stay short
 (-newton_pc_reuse, -newton_pc_rebuild_its): the Jacobian differs from step to step only in
-the contact rows; a rebuild keeps GAMG's interpolation (-newton_pc_gamg_reuse_interpolation,
-default true here) and recomputes the Galerkin products only.
+the contact rows; a rebuild recomputes the Galerkin coarse operators only (multigrid's
+interpolations are fixed; GAMG's are kept: -newton_pc_gamg_reuse_interpolation, default
+true here).
 Memory: the Jacobian is A itself with its contact rows changed during the solve (one
 matrix, not two; at Nd = 80 A is 4.6 GB), and A gets its rows back at the end, also when
 the iteration fails; the residual reads A's own contact rows from a small copy (S, the
@@ -37,7 +39,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import options
+from . import multigrid, options
 from .loop import CONVERGED_ZERO, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
@@ -61,8 +63,9 @@ class CoulombNewton(Loop):
     hint = ("raise -newton_max_it, or try the paper's loops: -solver_mode faithful "
             "(or fast)")
 
-    def __init__(self, A, b, cs, clamped, diag_scale):
+    def __init__(self, A, b, cs, clamped, diag_scale, mg=None):
         super().__init__(A.getComm())
+        self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
         self.bc = None
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
@@ -91,7 +94,6 @@ class CoulombNewton(Loop):
         self.ksp.setType("gmres")
         self.ksp.setPCSide(PETSc.PC.Side.RIGHT)
         self.ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        self.ksp.getPC().setType("gamg")
         self.ksp.setTolerances(rtol=1e-8, atol=0.0, max_it=1000)
 
     def check_options(self):
@@ -99,7 +101,7 @@ class CoulombNewton(Loop):
             raise ValueError(f"-newton_ew_max must be in (0, 1), got {self.ew_max}")
         with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
                                self.prefix + "ksp_gmres_restart": "30"}):
-            self.ksp.setFromOptions()
+            multigrid.configure(self.ksp, self.mg)
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
@@ -306,12 +308,14 @@ class CoulombNewton(Loop):
         its own rows back at the end, also when the iteration fails."""
         self.begin(rtol)
         self._gather_load()
+        if self.mg is not None:
+            self.mg.set_interpolations(self.ksp)        # ksp.reset() drops them
         _EV_ITER.begin()
         try:
             it, reason = self._iterate(x)
         finally:
             self._restore()
-            self.ksp.reset()              # the preconditioner's memory (GAMG's levels)
+            self.ksp.reset()              # the preconditioner's memory (its coarse levels)
             _EV_ITER.end()
         self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
         return x

@@ -27,6 +27,7 @@ class Discretisation:
     def __init__(self, scene, comm, hierarchy, level=-1):
         self.scene, self.comm = scene, comm
         self.hierarchy, self.level = hierarchy, hierarchy.levels[level]
+        self.level_index = level % len(hierarchy.levels)
         self._setup()
 
     def _part_faces(self, name, part, conn, coords):

@@ -13,7 +13,7 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, options, output, residuals as res
+from . import fem, multigrid, options, output, residuals as res
 from .apg import APG
 from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
@@ -78,7 +78,8 @@ class NewtonLoops:
 
     def __init__(self, disc, b, gap):
         self.cs = disc.cs
-        self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale)
+        self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
+                                   multigrid.for_problem(disc))
         self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap)
 
@@ -112,7 +113,7 @@ def solve(pr, coarse_start=None):
 
 def solve_linear(pr):
     pr.mode = "linear"
-    ksp = fem.elasticity_ksp(pr.A)
+    ksp = fem.elasticity_ksp(pr.A, mg=multigrid.for_problem(pr.disc))
     ksp.solve(pr.b, pr.x)
     if ksp.getConvergedReason() < 0:
         raise RuntimeError(f"linear elasticity KSP diverged: reason "

@@ -9,6 +9,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from . import multigrid
 from .mesh import HEX_REF, MeshError
 
 _G = 1.0 / np.sqrt(3.0)
@@ -339,13 +340,14 @@ def configure_elasticity(A, coordinates, frame=None):
     return ns
 
 
-def elasticity_ksp(A, prefix="elastic_", rtol=1e-10):
-    """CG + GAMG for A (options prefix `prefix` so the command line wins)."""
+def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
+    """CG for A, preconditioned by geometric multigrid on the mesh hierarchy (mg, a
+    multigrid.Multigrid) or else GAMG (options prefix `prefix`: the command line wins,
+    -elastic_pc_type gamg included)."""
     ksp = PETSc.KSP().create(comm=A.getComm())
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)
     ksp.setType(PETSc.KSP.Type.CG)
-    ksp.getPC().setType(PETSc.PC.Type.GAMG)
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
-    ksp.setFromOptions()
+    multigrid.configure(ksp, mg)
     return ksp

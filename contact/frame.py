@@ -100,6 +100,25 @@ class ContactFrame:
         K = np.einsum("maij,majbk,mblk->maibl", T, K, T, optimize=True)
         return K.reshape(Ke.shape)
 
+    def rotate_rows(self, P):
+        """T^T P (a new Mat) for a Mat P whose rows are displacement dofs in x, y, z
+        (block size 3): the rows of each rotated node multiplied by Q."""
+        r0, r1 = P.getOwnershipRange()
+        nb = (r1 - r0) // 3
+        Tt = np.zeros((nb, 3, 3))
+        Tt[:] = np.eye(3)
+        Tt[self.nodes] = self.Q
+        cols = (r0 // 3 + np.arange(nb))[:, None, None] * 3 + np.arange(3)[None, None, :]
+        ptr = np.arange(0, 9 * nb + 1, 3, dtype=PETSc.IntType)
+        T = PETSc.Mat().createAIJ(size=((r1 - r0, PETSc.DETERMINE), (r1 - r0, PETSc.DETERMINE)),
+                                  bsize=3, comm=P.getComm(),
+                                  csr=(ptr, np.broadcast_to(cols, (nb, 3, 3)).ravel()
+                                       .astype(PETSc.IntType), Tt.ravel()))
+        T.assemble()
+        out = T.matMult(P)
+        T.destroy()
+        return out
+
     def rigid_body_nullspace(self, coordinates):
         """The rigid-body near-nullspace of A~: T^T of the six rigid modes (orthonormal,
         as T^T is orthogonal)."""

@@ -52,12 +52,16 @@ def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0):
 
 class Level:
     """One mesh of the hierarchy: nd, the uninterpolated DMPlex with its displacement
-    section, conn (nc, 8) local vertex indices and coords (nv, 3) local coordinates."""
+    section, conn (nc, 8) local vertex indices and coords (nv, 3) local coordinates,
+    n_dofs (global)."""
 
     def __init__(self, nd, dm):
         self.nd, self.dm = nd, dm
         mesh.displacement_section(dm)
         self.conn, self.coords = mesh.cell_vertices(dm)
+        g = dm.getGlobalVec()
+        self.n_dofs = g.getSize()
+        dm.restoreGlobalVec(g)
 
     def destroy(self):
         self.dm.destroy()
@@ -74,6 +78,7 @@ class MeshHierarchy:
         self.comm = comm
         self.kind = m.get("type", "box")
         self.physical_names = []
+        self._prolongations = {}
         nd = int(m.get("nd", 1))
         refine = options.get("mesh_refine")
         if refine < -1:
@@ -135,14 +140,20 @@ class MeshHierarchy:
                 f"refined {self.refinements} times in parallel")
 
     def release_below(self, j):
-        """Free the levels coarser than j (after the coarse-to-fine start)."""
+        """Free the meshes of the levels coarser than j (after the coarse-to-fine start);
+        the interpolations up to level j are built first and kept (multigrid.py)."""
+        for i in range(1, j + 1):
+            self.prolongation(i)
         for lv in self.levels[:j]:
             if lv.dm is not None:
                 lv.destroy()
 
     def prolongation(self, j):
-        """P (Mat, block size 3): level j - 1 -> level j, Q1 interpolation (a new Mat)."""
-        return prolongation(self.levels[j - 1], self.levels[j])
+        """P (Mat, block size 3): level j - 1 -> level j, Q1 interpolation (built once,
+        owned by the hierarchy: do not destroy it)."""
+        if j not in self._prolongations:
+            self._prolongations[j] = prolongation(self.levels[j - 1], self.levels[j])
+        return self._prolongations[j]
 
 
 def _snap_to_box(level, cells, lower, upper):

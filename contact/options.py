@@ -343,7 +343,8 @@ def usage():
              "Options (the scene file gives defaults, the command line wins; P = fp_, "
              "uzawa_, apg_, ssn_, newton_):",
              "Solvers: -solver_mode newton (default): semismooth Newton on the whole problem, "
-             "a few GMRES + GAMG solves (-newton_*); -solver_mode faithful: the paper's "
+             "a few GMRES solves (-newton_*; geometric multigrid on a refined mesh, else GAMG: "
+             "-newton_pc_type gamg picks GAMG); -solver_mode faithful: the paper's "
              "fixed point > Uzawa > APG (-fp_*, -uzawa_*, -apg_*)."]
     for text, meaning, default in _rows():
         d = f" [{default}]" if default else ""

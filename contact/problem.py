@@ -122,7 +122,6 @@ class ContactProblem:
         transfer.prolong_contact(P, coarse, self, coarse.l, l0)
         if coarse.g is not None:
             transfer.prolong_contact(P, coarse, self, coarse.g, g0)
-        P.destroy()
         PETSc.Sys.Print(f"c2f: started Nd = {self.nd} from the solution at Nd = {coarse.nd}",
                         comm=self.comm)
         del coarse

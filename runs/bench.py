@@ -14,6 +14,12 @@ Parts (--part, default all):
           bandwidth PETSc's VecWAXPY reaches on this machine).
   ranks   the default mode on 1 and 2 ranks, Nd = 20 and 40 (--ranks-nd): solve time,
           speed-up, memory.
+  scaling memory against ranks: the default mode at Nd = 30 (--scaling-nd) on 1, 2 and 4
+          ranks (4 oversubscribed here: memory counts, its times do not), the process
+          floor (Nd = 2, 1 rank), memory efficiency (P1 - floor) / (n (Pn - floor)) with
+          Pn the largest rank's peak; bytes per dof of all ranks together at Nd = 40 on 2
+          ranks (--kb-nd); the linear solve's preconditioners side by side (CG + GAMG, the
+          LSE, and CG + geometric multigrid on the mesh hierarchy, the default).
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
 free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
@@ -55,7 +61,8 @@ LSE_SCENE = os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml")
 def lse(args, nd, np_=1):
     """Seconds of one linear-solve equivalent at this Nd on np_ ranks (see the docstring)."""
     s = run(args, f"lse-nd{nd}" + (f"-np{np_}" if np_ > 1 else ""), nd,
-            ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"], np_=np_).summary
+            ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8",
+             "-elastic_pc_type", "gamg"], np_=np_).summary
     assert s["mode"] == "linear", s["mode"]
     return s["time_s"]["solve"]
 
@@ -214,15 +221,60 @@ def part_ranks(args, lines):
     lines.append("")
 
 
+def part_scaling(args, lines):
+    nd = args.scaling_nd
+    floor = mem(run(args, "floor-nd2", 2, NEWTON).summary)
+    lines += [f"## Memory against ranks, default mode, Nd = {nd}", "",
+              f"Process floor (Nd = 2, 1 rank): {floor:.0f} MiB. Efficiency: "
+              "(P1 - floor) / (n (Pn - floor)), Pn the largest rank's peak on n ranks.", "",
+              "| ranks | dofs | peak memory per rank, MiB | efficiency | kB per dof (all "
+              "ranks) | set-up, s | solve, s | Newton / KSP its |", "|---|---|---|---|---|---|---|---|"]
+    p1 = None
+    for np_ in args.scaling_ranks:
+        s = run(args, f"newton-nd{nd}" + (f"-np{np_}" if np_ > 1 else ""), nd, NEWTON,
+                np_=np_).summary
+        pn = mem(s)
+        p1 = pn if np_ == 1 else p1
+        eff = (f"{(p1 - floor) / (np_ * (pn - floor)):.2f}"
+               if np_ > 1 and p1 is not None and pn > floor else "–")
+        kb = sum(s["peak_rss_mib"]) * 1048576 / 1000 / s["dofs"]
+        lines.append(f"| {np_} | {s['dofs']} | {' / '.join(f'{m:.0f}' for m in s['peak_rss_mib'])}"
+                     f" | {eff} | {kb:.2f} | {s['time_s']['setup']:.2f} | "
+                     f"{s['time_s']['solve']:.2f} | {s['iterations']['inner_total']} / "
+                     f"{s['iterations']['ksp_total']} |")
+    lines += ["", f"## Bytes per dof and the linear solve's preconditioner, Nd = {args.kb_nd}, "
+              "2 ranks", "",
+              "| case | dofs | peak memory per rank, MiB | kB per dof (all ranks) | set-up, s | "
+              "solve, s | KSP its |", "|---|---|---|---|---|---|---|"]
+    kb_nd = args.kb_nd
+    cases = [("default (newton, multigrid)", f"newton-nd{kb_nd}-np2", NEWTON),
+             ("newton, -newton_pc_type gamg", f"newton-gamg-nd{kb_nd}-np2",
+              NEWTON + ["-newton_pc_type", "gamg"]),
+             ("no contact, CG + multigrid", f"linear-mg-nd{kb_nd}-np2",
+              ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"]),
+             ("no contact, CG + GAMG (the LSE)", f"lse-nd{kb_nd}-np2",
+              ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8", "-elastic_pc_type", "gamg"])]
+    for name, case, opts in cases:
+        s = run(args, case, kb_nd, opts, np_=2).summary
+        kb = sum(s["peak_rss_mib"]) * 1048576 / 1000 / s["dofs"]
+        lines.append(f"| {name} | {s['dofs']} | {' / '.join(f'{m:.0f}' for m in s['peak_rss_mib'])}"
+                     f" | {kb:.2f} | {s['time_s']['setup']:.2f} | {s['time_s']['solve']:.2f} | "
+                     f"{s['iterations']['ksp_total']} |")
+    lines.append("")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
-                                                       "ranks"])
+                                                       "ranks", "scaling"])
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
     ap.add_argument("--modes", nargs="+", default=["newton", "fast"], choices=list(MODES),
                     help="the modes of the table1 part")
     ap.add_argument("--equal-nd", type=int, default=10, help="size of the 'equal' part")
     ap.add_argument("--ranks-nd", type=int, nargs="+", default=[20, 40])
+    ap.add_argument("--scaling-nd", type=int, default=30)
+    ap.add_argument("--scaling-ranks", type=int, nargs="+", default=[1, 2, 4])
+    ap.add_argument("--kb-nd", type=int, default=40)
     ap.add_argument("--force", action="store_true", help="rerun cached cases")
     ap.add_argument("--smoke", action="store_true",
                     help="every part at Nd = 2 (tests); needs --out-dir, records there")
@@ -235,6 +287,7 @@ def main(argv=None):
         if args.out_dir is None:
             ap.error("--smoke needs --out-dir (it must not write into runs/)")
         args.nd, args.equal_nd, args.ranks_nd = [2], 2, [2]
+        args.scaling_nd, args.kb_nd, args.scaling_ranks = 4, 4, [1, 2]
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
     args.record = args.record or (os.path.join(args.out_dir, "bench.md") if args.smoke else
                                   os.path.join(ROOT, "runs", "results", "bench.md"))
@@ -243,7 +296,7 @@ def main(argv=None):
              + harness.provenance_lines(1, make="bench", argv=argv)
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
-             "ranks": part_ranks}
+             "ranks": part_ranks, "scaling": part_scaling}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)

@@ -96,7 +96,8 @@ def test_bench(tmp_path):
     assert int(rows["newton"][6]) == 0 and int(rows["newton"][4]) >= 1   # no loops: Newton
     # the LSE: a linear solve of the same mesh, timed; solve / LSE is their ratio
     lse = harness.cached(tmp_path / "lse-nd2", ["-nd", 2, "-scene", LSE_SCENE,
-                                                  "-elastic_ksp_rtol", "1e-8"])
+                                                  "-elastic_ksp_rtol", "1e-8",
+                                                  "-elastic_pc_type", "gamg"])
     assert lse.ok and lse.summary["mode"] == "linear" and lse.summary["dofs"] == n_p(2)
     for mode in rows:
         run = harness.cached(tmp_path / f"{mode}-nd2", ["-nd", 2, "-solver_mode", mode])
@@ -116,6 +117,20 @@ def test_bench(tmp_path):
     two = harness.cached(tmp_path / "newton-nd2-np2", ["-nd", 2, "-solver_mode", "newton"], 2)
     assert one.ok and two.ok and two.summary["ranks"] == 2
     assert harness.rel_errors(two, one)["u"] < 1e-7
+    # memory against ranks (Nd = 4 here): 1 and 2 ranks, the efficiency from the peaks
+    mem = {r[0]: r for r in table_rows(md, 1) + table_rows(md, 2) if len(r) == 8}
+    assert set(mem) == {"1", "2"} and mem["1"][3] == "–"
+    floor = harness.cached(tmp_path / "floor-nd2", ["-nd", 2, "-solver_mode", "newton"])
+    p1, p2 = (harness.cached(tmp_path / c, ["-nd", 4, "-solver_mode", "newton"], n)
+              for c, n in (("newton-nd4", 1), ("newton-nd4-np2", 2)))
+    f, m1, m2 = (max(r.summary["peak_rss_mib"]) for r in (floor, p1, p2))
+    if m2 > f:                                   # the smoke size is near the floor
+        assert abs(float(mem["2"][3]) - (m1 - f) / (2 * (m2 - f))) <= 0.006
+    # the preconditioners side by side: the four cases at Nd = 4 on 2 ranks
+    for case in ("default (newton, multigrid)", "newton, -newton_pc_type gamg",
+                 "no contact, CG + multigrid", "no contact, CG + GAMG (the LSE)"):
+        row, = table_rows(md, case)
+        assert int(row[1]) == n_p(4) and int(row[6]) > 0
 
 
 def test_report(tmp_path):
