@@ -287,7 +287,8 @@ class CoulombNewton(Loop):
             if not reuse:
                 self.pc_setups += 1
             self._rebuild = False
-            self.ksp.solve(rhs, self.dx)
+            with multigrid.galerkin_options():
+                self.ksp.solve(rhs, self.dx)
             its = self.ksp.getIterationNumber()
             self.ksp_iterations += its
             ok = self.ksp.getConvergedReason() > 0

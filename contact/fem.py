@@ -17,8 +17,9 @@ _GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, 
 _GP2 = np.array([[a, b] for a in (-_G, _G) for b in (-_G, _G)])
 _QUAD_REF = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
 
-#: cells per chunk when computing element matrices (bounds memory: 4.6 kB per cell)
-CHUNK = 20000
+#: cells per chunk when computing element matrices (bounds the temporaries: the element
+#: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
+CHUNK = 4096
 
 
 def lame(young, poisson):

@@ -30,7 +30,7 @@ from .mesh import HEX_REF, MeshError
 #: the automatic k keeps at least this many coarse cells per rank
 MIN_CELLS_PER_RANK = 16
 #: fine vertices per chunk when locating them in their parent cells
-CHUNK = 65536
+CHUNK = 16384
 
 
 def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0):

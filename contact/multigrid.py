@@ -13,6 +13,7 @@ rank) up to COARSE_LU_MAX dofs, else solved by one GAMG cycle.
 
 Measured (runs/results/scaling.md): at Nd = 40 on 2 ranks a CG solve of the beam without
 contact takes 9 iterations and 3.8 s with it, 23 and 10.6 s with GAMG, and less memory.
+The Galerkin products are formed "all at once" (GALERKIN): less memory, a little slower.
 A mesh of one level (gmsh, a mesh file, -mesh_refine 0, an odd Nd) gets GAMG, as does any
 solve given -<prefix>pc_type gamg: the options database has the last word.
 """
@@ -25,6 +26,10 @@ COARSE_LU_MAX = 30000
 
 #: defaults under the KSP's prefix (the command line wins)
 DEFAULTS = {"pc_mg_galerkin": "both"}
+#: the Galerkin products P^T K P without the intermediate K P kept (PETSc's "allatonce"):
+#: at Nd = 40 on 2 ranks the whole run's peak falls from 1032 to 765 MiB per rank, for
+#: ~10% more time (-matptap_via scalable: the other way round)
+GALERKIN = {"matptap_via": "allatonce"}
 
 
 class Multigrid:
@@ -84,6 +89,12 @@ class Multigrid:
         if self._finest is not None:
             self._finest.destroy()
             self._finest = None
+
+
+def galerkin_options():
+    """Around a solve whose PC set-up forms the Galerkin products (MatPtAP reads its
+    options then): GALERKIN, unless the command line says otherwise."""
+    return options.inserted(GALERKIN)
 
 
 def for_problem(disc):

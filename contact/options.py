@@ -165,7 +165,7 @@ LOOP_DEFAULTS = {p: {o.name[len(p):]: o.default for o in REGISTRY if o.name.star
 
 #: PETSc's own options that look like ours to a spelling check
 PETSC_GLOBAL = ("log_view", "options_left", "malloc_debug", "malloc_dump", "info",
-                "use_gpu_aware_mpi", "device_enable", "log_trace")
+                "use_gpu_aware_mpi", "device_enable", "log_trace", "matptap_via")
 #: read by PETSc only when it finalizes (so still unused at the end of a run)
 PETSC_AT_EXIT = ("log_view", "options_left", "malloc_dump", "malloc_debug", "log_trace",
                  "memory_view", "objects_dump", "check_pointer_intensity")
