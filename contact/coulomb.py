@@ -287,7 +287,7 @@ class CoulombNewton(Loop):
             if not reuse:
                 self.pc_setups += 1
             self._rebuild = False
-            with multigrid.galerkin_options(self.comm):
+            with multigrid.galerkin_options(self.ksp):
                 self.ksp.solve(rhs, self.dx)
             its = self.ksp.getIterationNumber()
             self.ksp_iterations += its

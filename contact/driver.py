@@ -114,7 +114,7 @@ def solve(pr, coarse_start=None):
 def solve_linear(pr):
     pr.mode = "linear"
     ksp = fem.elasticity_ksp(pr.A, mg=multigrid.for_problem(pr.disc))
-    with multigrid.galerkin_options(pr.comm):
+    with multigrid.galerkin_options(ksp):
         ksp.solve(pr.b, pr.x)
     if ksp.getConvergedReason() < 0:
         raise RuntimeError(f"linear elasticity KSP diverged: reason "

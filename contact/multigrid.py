@@ -27,7 +27,7 @@ COARSE_LU_MAX = 30000
 #: defaults under the KSP's prefix (the command line wins)
 DEFAULTS = {"pc_mg_galerkin": "both"}
 #: the Galerkin products P^T K P without the intermediate K P kept (PETSc's "allatonce",
-#: for parallel matrices):
+#: for parallel matrices; not for GAMG, whose set-up it slows 3x):
 #: at Nd = 40 on 2 ranks the whole run's peak falls from 1032 to 765 MiB per rank, for
 #: ~10% more time (-matptap_via scalable: the other way round)
 GALERKIN = {"matptap_via": "allatonce"}
@@ -92,11 +92,13 @@ class Multigrid:
             self._finest = None
 
 
-def galerkin_options(comm):
+def galerkin_options(ksp):
     """Around a solve whose PC set-up forms the Galerkin products (MatPtAP reads its
-    options then): GALERKIN on more than one rank (a serial matrix has no "allatonce"),
-    unless the command line says otherwise."""
-    return options.inserted(GALERKIN if comm.getSize() > 1 else {})
+    options then): GALERKIN for our PCMG on more than one rank (a serial matrix has no
+    "allatonce"; GAMG's smoothed prolongators are slow with it), unless the command line
+    says otherwise."""
+    mine = ksp.getPC().getType() == PETSc.PC.Type.MG and ksp.getComm().getSize() > 1
+    return options.inserted(GALERKIN if mine else {})
 
 
 def for_problem(disc):
