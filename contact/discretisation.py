@@ -13,7 +13,7 @@ vectors, and the solution lives in the problem (problem.py).
 import numpy as np
 from mpi4py import MPI
 
-from . import fem, mesh
+from . import fem, mesh, multigrid
 from .contactset import ContactSet
 from .frame import ContactFrame, basis
 from .scene import AXES, SceneError, foundation_normal
@@ -82,6 +82,9 @@ class Discretisation:
         self._loads()
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
         self.n_dofs = self.A.getSize()[0]
+        #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
+        #: finest interpolation is built once, for every load increment's solve
+        self.multigrid = multigrid.for_problem(self)
 
     def _parts(self):
         """Boundary parts (faces), the dirichlet and symmetry constraints, clamped rows."""

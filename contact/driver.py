@@ -79,7 +79,7 @@ class NewtonLoops:
     def __init__(self, disc, b, gap):
         self.cs = disc.cs
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
-                                   multigrid.for_problem(disc))
+                                   disc.multigrid)
         self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap)
 
@@ -113,7 +113,7 @@ def solve(pr, coarse_start=None):
 
 def solve_linear(pr):
     pr.mode = "linear"
-    ksp = fem.elasticity_ksp(pr.A, mg=multigrid.for_problem(pr.disc))
+    ksp = fem.elasticity_ksp(pr.A, mg=pr.disc.multigrid)
     with multigrid.galerkin_options(ksp):
         ksp.solve(pr.b, pr.x)
     if ksp.getConvergedReason() < 0:

@@ -87,11 +87,6 @@ class Multigrid:
         for j in range(1, self.n_levels):
             pc.setMGInterpolation(j, self.interpolation(j))
 
-    def destroy(self):
-        if self._finest is not None:
-            self._finest.destroy()
-            self._finest = None
-
 
 def galerkin_options(ksp):
     """Around a solve whose PC set-up forms the Galerkin products (MatPtAP reads its
@@ -103,7 +98,8 @@ def galerkin_options(ksp):
 
 
 def for_problem(disc):
-    """The Multigrid of a discretisation, or None when its mesh has one level (GAMG)."""
+    """The Multigrid of a discretisation, or None when its mesh has one level (GAMG); the
+    discretisation keeps its own (`disc.multigrid`), shared by every solve on it."""
     if disc.level_index == 0:
         return None
     return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped)
