@@ -19,8 +19,11 @@ from .scene import SceneError, ramp_factor
 
 
 def check(disc):
-    """All checks; returns `friction_held`: None, or (Q, frame) of the rigid motions that
-    friction alone must hold (driver.py starts their fixed point from a pressure)."""
+    """All checks; returns (friction_held, contact_held): friction_held is None, or (Q,
+    frame) of the rigid motions that friction alone must hold (driver.py starts their fixed
+    point from a pressure); contact_held: the dirichlet parts alone leave a rigid motion
+    free, so the foundation must hold the body (the Newton iteration's first step then
+    closes every contact node: from an open gap nothing else would hold it)."""
     check_prescribed_on_contact(disc)
     return check_rigid_motion(disc)
 
@@ -47,7 +50,8 @@ def check_rigid_motion(disc):
 
     Motions tangential to the foundation (translations along it, rotation about its
     normal) may be left to friction (F > 0): the body is then `friction_held`, and the
-    statics of a rigid block decide (`check_friction_statics`)."""
+    statics of a rigid block decide (`check_friction_statics`). Returns (friction_held,
+    contact_held) as `check`."""
     held = None
     cpts = disc.cs.coordinates if disc.cs is not None else None
     n = disc.normal
@@ -70,7 +74,7 @@ def check_rigid_motion(disc):
                              + ", ".join(free) + f"){why}: no unique solution; clamp "
                              "more components or parts")
     if cpts is None:
-        return held
+        return held, False
     free, Q, frame = unheld
     if free:
         b = disc.to_xyz(disc.b)
@@ -81,7 +85,7 @@ def check_rigid_motion(disc):
             raise SceneError("only the foundation holds the body (" + ", ".join(free) +
                              " free otherwise) and the load pulls it away: no "
                              "equilibrium")
-    return held
+    return held, bool(free)
 
 
 def check_friction_statics(disc, Q, Q0):

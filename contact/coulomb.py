@@ -22,7 +22,9 @@ the mesh hierarchy (multigrid.py; GAMG on a mesh of one level); options prefix
 step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)|| (-newton_rtol).
 From x = 0 the first step holds every active node (glued): from there the slip directions
 are the solution's own, not the bare load's (a body held by friction alone would otherwise
-get a singular first Jacobian).
+get a singular first Jacobian). A body the foundation alone holds (the dirichlet parts
+leave a rigid motion free) gets every contact node closed in that step (its gaps shut,
+dx_n = -h): across an initial gap no node is active at x = 0.
 The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew). The
 preconditioner of the first step is kept while the solves stay short
 (-newton_pc_reuse, -newton_pc_rebuild_its): the Jacobian differs from step to step only in
@@ -40,7 +42,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import multigrid, options
-from .loop import CONVERGED_ZERO, Loop, ksp_reason_name
+from .loop import CONVERGED_RTOL, CONVERGED_ZERO, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
@@ -48,6 +50,7 @@ _EV_MAT = PETSc.Log.Event("Newton assemble")
 _EV_RES = PETSc.Log.Event("Newton residual")
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
+DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
 INSERT = PETSc.InsertMode.INSERT_VALUES
 
 
@@ -59,13 +62,15 @@ class CoulombNewton(Loop):
     prefix = "newton_"
     title = "Newton"
     indent = 2
+    measure = "relative residual"
     name = "newton"
     hint = ("raise -newton_max_it, or try the paper's loops: -solver_mode faithful "
             "(or fast)")
 
-    def __init__(self, A, b, cs, clamped, diag_scale, mg=None):
+    def __init__(self, A, b, cs, clamped, diag_scale, mg=None, close_first=False):
         super().__init__(A.getComm())
         self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
+        self.close_first = bool(close_first)   # the glued first step closes every node
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
         self.bc = None
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
@@ -74,6 +79,8 @@ class CoulombNewton(Loop):
         self.pc_setups = 0
         self._rebuild = False
         self.line_search_cuts = 0
+        self.continuations = 0           # stalled stages started again with less friction
+        self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
         self.R, self.r, self.dx, self.xt, self.free, self.rhs = \
             (b.duplicate() for _ in range(6))
@@ -99,6 +106,17 @@ class CoulombNewton(Loop):
     def check_options(self):
         if not 0.0 < self.ew_max < 1.0:
             raise ValueError(f"-newton_ew_max must be in (0, 1), got {self.ew_max}")
+        if not 0.0 <= self.continuation_factor < 1.0:
+            raise ValueError(f"-newton_continuation_factor must be in [0, 1), got "
+                             f"{self.continuation_factor}")
+        if self.stall_its < 1:
+            raise ValueError(f"-newton_stall_its must be >= 1, got {self.stall_its}")
+        if self.continuation_levels < 0:
+            raise ValueError(f"-newton_continuation_levels must be >= 0, got "
+                             f"{self.continuation_levels}")
+        if not 0.0 < self.linesearch_min <= 1.0:
+            raise ValueError(f"-newton_linesearch_min must be in (0, 1], got "
+                             f"{self.linesearch_min}")
         with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
                                self.prefix + "ksp_gmres_restart": "30"}):
             multigrid.configure(self.ksp, self.mg)
@@ -179,8 +197,10 @@ class CoulombNewton(Loop):
         return [y[k] - self.bc[k] for k in range(3)]
 
     # -- residual ------------------------------------------------------------------------------
-    def _state(self, x, r):
-        """The sets, slip data and the residual r(x) (into r); returns (||r||, state)."""
+    def _state(self, x, r, sets=None):
+        """The sets, slip data and the residual r(x) (into r); returns (||r||, state).
+        sets: (active, stick, slip) held fixed instead of x's own (the smooth residual
+        whose derivative the Jacobian is: tests/test_jacobian.py)."""
         _EV_RES.begin()
         cs, c = self.cs, self.c
         self.A.mult(x, self.R)                         # A's rows off the contact dofs
@@ -193,11 +213,15 @@ class CoulombNewton(Loop):
         h = X[2] + cs.local_array(self.gap)
         an = R[2] / w - rho * h
         active = an >= 0.0                             # closed: from x = 0 the face is held
-        bound = F * np.maximum(an, 0.0)
+        if sets is not None:
+            active = sets[0]
+        bound = F * np.where(active, an, 0.0)          # F a_n^+ (x's own sets)
         z1, z2 = R[0] / w - rho * X[0], R[1] / w - rho * X[1]
         nz = np.hypot(z1, z2)
         stick = active & (F > 0.0) & (nz <= bound)
         slip = active & ~stick
+        if sets is not None:
+            stick, slip = sets[1], sets[2]
         ns = np.where(nz > 0.0, nz, 1.0)
         n1, n2 = np.where(slip, z1 / ns, 0.0), np.where(slip, z2 / ns, 0.0)
         cc = np.where(slip & (nz > 0.0), bound / ns, 0.0)         # in [0, 1)
@@ -220,9 +244,14 @@ class CoulombNewton(Loop):
         right-hand side -r (slip rows multiplied by (I - cP)^-1) into self.rhs; the
         Dirichlet values into self.dx. glued: the active nodes with F > 0 all held
         (dx_t = -x_t): the first step from x = 0, whose slip directions are those of the
-        load alone and may leave nothing to hold a body held by friction alone."""
+        load alone and may leave nothing to hold a body held by friction alone; with
+        close_first (a body the foundation alone holds) every contact node is closed too
+        (dx_n = -h): across an open gap no node is active at x = 0, and the Jacobian would
+        be that of a floating body (singular)."""
         if glued:
             st = dict(st)
+            if self.close_first:      # held by the foundation alone: close every gap
+                st["active"] = np.ones_like(st["active"])
             st["stick"] = st["active"] & (self.F > 0.0)
             st["slip"] = st["active"] & ~st["stick"]
         _EV_MAT.begin()
@@ -318,20 +347,69 @@ class CoulombNewton(Loop):
             self._restore()
             self.ksp.reset()              # the preconditioner's memory (its coarse levels)
             _EV_ITER.end()
-        self.finish(it, reason, self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else None)
+        hint = self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else \
+            self._stall_hint if reason == DIVERGED_STAGNATION else None
+        self.finish(it, reason, hint)
         return x
 
     def _iterate(self, x):
-        """The Newton iteration (see the module); returns (iterations, reason)."""
+        """The Newton iteration (see the module) with friction continuation when it stalls:
+        a stage that stalls (-newton_stall_its failed line searches in a row) starts again
+        from its start, first solving with friction F x S (S^2, ... if that stalls too;
+        -newton_continuation_factor S, -newton_continuation_levels), then at F from that
+        solution. Returns (iterations over all stages, reason)."""
         x0 = x.duplicate()
         x0.set(0.0)
         scale, _ = self._state(x0, self.r)               # ||r(0)||: the scale of the test
         x0.destroy()
+        self.residual = 0.0
+        if scale == 0.0:
+            return 0, CONVERGED_ZERO
+        F, rtol = self.F, self._rtol
+        factors, start, it = [1.0], x.copy(), 0
+        can_continue = self.continuation_factor > 0.0 and \
+            self.comm.tompi4py().allreduce(bool((F > 0.0).any()), op=MPI.LOR)
+        try:
+            while True:
+                self.F = F * factors[-1]
+                self._rtol = rtol if len(factors) == 1 else max(rtol, 1e-8)
+                x.copy(start)
+                it, reason = self._stage(x, scale, it)
+                if reason in (CONVERGED_RTOL, CONVERGED_ZERO):
+                    factors.pop()
+                    if not factors:
+                        return it, reason
+                    self._note(it, f"continuation: friction F x {factors[-1]:g} from here")
+                elif reason == DIVERGED_STAGNATION and can_continue and \
+                        len(factors) <= self.continuation_levels:
+                    factors.append(factors[-1] * self.continuation_factor)
+                    start.copy(x)                        # the stage's start again
+                    self._note(it, f"stalled ({self.stall_its} steps without a new lowest "
+                                   f"residual): "
+                                   f"starting again with friction F x {factors[-1]:g}")
+                else:
+                    if reason == DIVERGED_STAGNATION:
+                        self._stall_hint = (
+                            f"{self.stall_its} steps in a row did not lower the "
+                            f"residual" + (
+                                f", also with friction continuation down to F x "
+                                f"{factors[-1]:g}" if len(factors) > 1 else "") +
+                            "; try -load_steps N, a finer mesh, or -solver_mode faithful")
+                    return it, reason
+        finally:
+            self.F, self._rtol = F, rtol
+            start.destroy()
+
+    def _stage(self, x, scale, it):
+        """Newton from x at the friction self.F to self._rtol (relative to scale); it: the
+        iterations so far. Returns (it, reason): converged, DIVERGED_STAGNATION,
+        DIVERGED_MAX_IT or DIVERGED_LINEAR_SOLVE."""
         glued = x.norm() == 0.0
+        first = it + 1
         nr, st = self._state(x, self.r)
-        it, reason, eta, nr_old = 0, None, self.ew_max, None
-        self.residual = nr / scale if scale > 0 else 0.0
-        if scale == 0.0 or nr == 0.0:
+        reason, eta, nr_old, fails, best = None, self.ew_max, None, 0, nr
+        self.residual = nr / scale
+        if nr == 0.0:
             reason = CONVERGED_ZERO
         while reason is None:
             it += 1
@@ -344,26 +422,39 @@ class CoulombNewton(Loop):
                 eta = self.ksp_rtol
             if self.ew:                 # no need to solve below the final tolerance
                 eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
-            K, rhs = self._system(st, glued and it == 1)
+            K, rhs = self._system(st, glued and it == first)
             if not self._linear_solve(K, rhs, eta):
                 reason = DIVERGED_LINEAR_SOLVE
                 break
-            # backtracking on ||r||
+            # backtracking on ||r||: the shortest step is taken also without a decrease;
+            # -newton_stall_its steps in a row that do not reach below the best residual
+            # of the stage end it as stalled
             t = 1.0
             while True:
                 self.xt.waxpy(t, self.dx, x)
                 nr_t, st_t = self._state(self.xt, self.r)
-                if nr_t <= (1.0 - 1e-4 * t) * nr or t <= self.linesearch_min:
+                decrease = nr_t <= (1.0 - 1e-4 * t) * nr
+                if decrease or t <= self.linesearch_min:
                     break
                 t *= 0.5
                 self.line_search_cuts += 1
+            fails = 0 if nr_t < best else fails + 1
+            best = min(best, nr_t)
             x.swap(self.xt)
             nr_old, nr, st = nr, nr_t, st_t
             self.n_active = int(st["active"].sum())
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
+            if reason is None and fails >= self.stall_its:
+                reason = DIVERGED_STAGNATION
             self._monitor(it, self.residual, self._sets_text(t) if self.monitor else "")
         return it, reason
+
+    def _note(self, it, text):
+        """A line of the monitor about the iteration itself (continuation)."""
+        self.continuations += text.startswith("stalled")
+        if self.monitor:
+            self.log(f"{' ' * self.indent}{it:6d} {self.title} {text}")
 
     def pressure(self, x, out):
         """out <- l_n = max(0, R_n / w - rho h) at x: the contact pressure (the paper's

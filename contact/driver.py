@@ -76,10 +76,10 @@ class NewtonLoops:
 
     fp = uzawa = None
 
-    def __init__(self, disc, b, gap):
+    def __init__(self, disc, b, gap, contact_held=False):
         self.cs = disc.cs
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
-                                   disc.multigrid)
+                                   disc.multigrid, close_first=contact_held)
         self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap)
 
@@ -129,7 +129,8 @@ def solve_contact(pr, b, gap, start=None, g0=None):
     pr.solver_mode = solver_mode(pr.scene)
     newton = pr.solver_mode == "newton"
     with options.inserted(SOLVER_MODES[pr.solver_mode]):
-        loops = (NewtonLoops if newton else Loops)(pr.disc, b, gap)
+        loops = NewtonLoops(pr.disc, b, gap, pr.contact_held) if newton else \
+            Loops(pr.disc, b, gap)
         pr.loops = loops
         cs = pr.cs
         pr.l = cs.vec()

@@ -27,10 +27,10 @@ def ksp_reason_name(ksp):
 class ConvergenceError(RuntimeError):
     """A loop stopped without converging: names the loop, the iteration and the reason."""
 
-    def __init__(self, loop, iteration, residual, reason, hint=""):
+    def __init__(self, loop, iteration, residual, reason, hint="", measure="relative change"):
         self.loop, self.iteration, self.residual, self.reason = loop, iteration, residual, reason
         msg = (f"{loop} loop did not converge: {reason} at iteration {iteration} "
-               f"(last relative change {residual:.3e})")
+               f"(last {measure} {residual:.3e})")
         if hint:
             msg += f"; {hint}"
         super().__init__(msg)
@@ -59,6 +59,7 @@ class Loop:
     title = ""
     hint = ""
     indent = 0
+    measure = "relative change"      # what `test` compares with -P_rtol (monitors, errors)
 
     def __init__(self, comm):
         self.comm = comm
@@ -96,7 +97,7 @@ class Loop:
 
     def _monitor(self, it, res, extra=""):
         if self.monitor and (it % self.monitor_stride == 0 or it == 1):
-            self.log(f"{' ' * self.indent}{it:6d} {self.title} rel. change {res:.6e}{extra}")
+            self.log(f"{' ' * self.indent}{it:6d} {self.title} {self.measure} {res:.6e}{extra}")
 
     def begin(self, rtol=None):
         """Start a call: its tolerance is -P_rtol, or the looser `rtol` an outer loop asks."""
@@ -138,9 +139,9 @@ class Loop:
             if reason == DIVERGED_NANORINF or self.error_if_not_converged:
                 raise ConvergenceError(self.title, it, self.residual, reason,
                                        "a NaN or Inf appeared in the iterate" if reason == DIVERGED_NANORINF
-                                       else (hint or self.hint))
+                                       else (hint or self.hint), self.measure)
             self.log(f"WARNING: {self.title} stopped by {reason} at iteration {it} "
-                     f"(rel. change {self.residual:.3e}); continuing as asked")
+                     f"({self.measure} {self.residual:.3e}); continuing as asked")
         return ok
 
 

@@ -39,9 +39,11 @@ LOOP_PREFIXES = {"fp_": ("FixedPoint", 1e-6, 100), "uzawa_": ("Uzawa", 1e-6, 100
                  "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100),
                  "newton_": ("Newton", 1e-11, 60)}
 #: options every loop reads under its prefix P
-COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate"),
+COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate "
+           "(newton: on the residual, ||r|| / ||r(0)||)"),
           ("max_it", int, "N", "iteration limit"),
-          ("monitor", bool, "", "print the relative change every iteration"),
+          ("monitor", bool, "", "print the relative change (newton: residual) every "
+           "iteration"),
           ("monitor_stride", int, "N", "with -P_monitor: every N-th iteration"),
           ("converged_reason", bool, "", "print why and after how many iterations it stopped"),
           ("error_if_not_converged", bool, "BOOL",
@@ -150,6 +152,13 @@ REGISTRY = [
            "failed one)", "N"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
+    Option("newton_stall_its", 3, int, "steps in a row without a new lowest residual "
+           "stop the iteration as stalled (then friction continuation, if on)", "N"),
+    Option("newton_continuation_factor", 0.3, float, "a stalled iteration starts again from "
+           "its start, first solving with friction F x S (then S^2, ... if that stalls too), "
+           "then at F from there; 0: off", "S"),
+    Option("newton_continuation_levels", 4, int, "at most N continuation levels (down to "
+           "F x S^N) before DIVERGED_STAGNATION", "N"),
 ]
 BY_NAME = {o.name: o for o in REGISTRY}
 #: the scene options with a name of their own (-nd, -friction, ...) and their scene paths

@@ -57,7 +57,7 @@ class ContactProblem:
             self.level = level % len(hierarchy.levels)
             self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level)
             self.skipped = self.disc.skipped      # what this scene does not need (reported)
-            self.friction_held = admissibility.check(self.disc)
+            self.friction_held, self.contact_held = admissibility.check(self.disc)
             self.x = self.b.duplicate()           # the DM's Vec type (cuda, ...), as b
             self.x.set(0.0)
         finally:

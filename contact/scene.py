@@ -121,8 +121,8 @@ def from_options(opts=None):
         if opts.hasName(opt):
             try:
                 old = _get(scene, path)
-            except (KeyError, IndexError, TypeError):
-                old = 1 if opt == "nd" else 0.0
+            except (KeyError, IndexError, TypeError):   # not in the scene: the option's type
+                old = {int: 0, bool: False, str: ""}.get(options.BY_NAME[opt].kind, 0.0)
             _set(scene, path, _convert(old, opts.getString(opt), opt, path))
     for path, old in list(options.scalars(scene)):
         name = "scene_" + "_".join(path)

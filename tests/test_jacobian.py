@@ -1,0 +1,145 @@
+"""The default solver's Jacobian (contact/coulomb.py) against finite differences of its own
+residual, with the contact, stick and slip sets held fixed.
+
+At a point x off the solution (the solution plus a random perturbation, so that inactive,
+stick and slip nodes all appear and r(x) != 0) the Newton system K dx = rhs is solved to
+1e-13. K is the Jacobian J of the residual r with rows scaled (the slip rows by
+(I - cP)^-1, the Dirichlet rows eliminated) and rhs = -(the same scaling) r, so a right K
+gives J dx = -r in every row: along dx, with the sets held fixed (the residual is smooth
+there),
+    e(t) = ||r(x + t dx) - (1 - t) r(x)|| / ||r(x)||  =  O(t^2).
+A wrong term of J leaves e(t) = t ||(J - J_wrong) dx|| / ||r|| + O(t^2): first order. The
+test asserts second order (e falls 100x when t falls 10x, or sits at the rounding floor)
+and e(t) / t small. Checked by hand against three wrong Jacobians (the slip rows' -F n A_n
+term dropped, its sign flipped, c / (1 - c) replaced by c): each fails here.
+
+Cases: the paper's beam (F = 0.3; F varying in space), a tilted foundation with a varying
+gap, a uniform gap with a body the foundation alone holds (the closing first step), and the
+friction-held block on the incline. On 1 and 2 ranks.
+"""
+import numpy as np
+import pytest
+from conftest import paper_scene
+from petsc4py import PETSc
+
+from contact import scene as scenes
+from contact.coulomb import CoulombNewton
+from contact.problem import ContactProblem
+
+#: the test's step lengths (relative to the Newton step, which is O(1) of x's distance)
+T = (1e-2, 1e-3, 1e-4)
+
+
+def _beam(friction=0.3, **contact):
+    sc = paper_scene(nd=3, mode="newton", c2f_levels=0)
+    sc["contact"]["friction"] = friction
+    sc["contact"].update(contact)
+    return scenes.validate(sc)
+
+
+def _incline():
+    import os
+    from conftest import ROOT
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "block_incline.yaml"))
+    sc["mesh"]["nd"] = 4
+    sc["solver"].pop("mode", None)
+    return scenes.validate(sc)
+
+
+def _gap_block():
+    """A block on the foundation across a uniform gap, pressed and sheared (no clamp)."""
+    import os
+    from conftest import ROOT
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "block_shear.yaml"))
+    sc["mesh"]["nd"] = 4
+    sc["loading"]["steps"] = 1
+    sc["boundary"]["shear"]["ramp"] = [0.0, 1.0]
+    sc["boundary"]["press"]["ramp"] = [0.0, 1.0]
+    sc["contact"]["gap"] = 1e-4
+    sc["solver"].pop("mode", None)
+    return scenes.validate(sc)
+
+
+CASES = {
+    "beam_F0.3": lambda: _beam(),
+    "beam_F_varying": lambda: _beam("0.1 + 0.4 * x / 3"),
+    "beam_tilted_gap": lambda: _beam(0.5, foundation={"point": [0.0, 0.0, -1e-5],
+                                                      "normal": [0.0, 0.05, 1.0]}),
+    "block_gap": _gap_block,
+    "incline": _incline,
+}
+
+
+def _newton(pr):
+    d = pr.disc
+    n = CoulombNewton(d.A, d.b, d.cs, d.clamped, d.diag_scale, d.multigrid,
+                      close_first=pr.contact_held).set_from_options(pr.scene)
+    n.set_load(d.b, d.cs.gap)
+    n._gather_load()
+    if n.mg is not None:
+        n.mg.set_interpolations(n.ksp)
+    return n
+
+
+def _errors(case, seed=0, scale=0.05, wrong=0.0):
+    """(e(t) for t in T, the set counts) at a perturbed solution of the case. wrong: add
+    wrong x (the normal row of A) to the slip nodes' first tangential rows of K (a wrong
+    F n A_n term, as a sign or factor error would make it)."""
+    pr = ContactProblem(CASES[case]()).solve()
+    n = _newton(pr)
+    x = pr.x.copy()
+    rng = np.random.default_rng(seed + pr.comm.getRank())
+    noise = x.duplicate()
+    lo, hi = noise.getOwnershipRange()
+    noise.setArray(rng.standard_normal(hi - lo))
+    noise.pointwiseMult(noise, n.free)                  # clamped rows stay 0
+    x.axpy(scale * x.norm() / noise.norm(), noise)
+    nr0, st = n._state(x, n.r)                          # _system reads n.r
+    r0 = n.r.copy()
+    sets = (st["active"], st["stick"], st["slip"])
+    mpi = pr.comm.tompi4py()
+    counts = {k: mpi.allreduce(int(v.sum())) for k, v in
+              zip(("active", "stick", "slip"), sets)}
+    counts["inactive"] = mpi.allreduce(int((~sets[0]).sum()))
+    try:
+        K, rhs = n._system(st)
+        if wrong:
+            q = np.flatnonzero(st["slip"])
+            rows = np.asarray(n.cs.dofs[0])[q].astype(PETSc.IntType)
+            if q.size:
+                K.setValuesRCV(rows.reshape(-1, 1), n.cols[2][q],
+                               wrong * n.vals[2][q][:, None, :], PETSc.InsertMode.ADD_VALUES)
+            K.assemble()
+        assert n._linear_solve(K, rhs, 1e-13)
+        dx = n.dx.copy()
+    finally:
+        n._restore()
+    r, xt, e = x.duplicate(), x.duplicate(), []
+    for t in T:
+        xt.waxpy(t, dx, x)
+        n._state(xt, r, sets=sets)
+        r.axpy(-(1.0 - t), r0)
+        e.append(r.norm() / nr0)
+    return np.array(e), counts
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_newton_step_is_the_linearisation(case):
+    e, counts = _errors(case)
+    assert counts["slip"] > 0 and counts["stick"] > 0, counts
+    assert counts["stick"] + counts["slip"] == counts["active"], counts
+    if case != "incline":                 # held by friction alone: every node in contact
+        assert counts["inactive"] > 0, counts
+    floor = 1e-13
+    # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor
+    for (t1, e1), (t2, e2) in zip(zip(T, e), zip(T[1:], e[1:])):
+        assert e2 < floor or e1 / e2 > 50.0, (case, e, counts)
+    assert e[-1] / T[-1] < 1e-4, (case, e, counts)
+
+
+def test_the_check_sees_a_wrong_jacobian():
+    """The same check with a wrong slip row (half of A's normal row added to it, as a wrong
+    factor of the -F n A_n term): first order, e(t) ~ t, so the test above fails on it."""
+    e, counts = _errors("beam_F0.3", wrong=0.5)
+    assert counts["slip"] > 0
+    assert e[-1] / T[-1] > 1e-3 and e[1] / e[2] < 20.0, e
