@@ -23,8 +23,8 @@ step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)|| (-newton
 From x = 0 the first step holds every active node (glued): from there the slip directions
 are the solution's own, not the bare load's (a body held by friction alone would otherwise
 get a singular first Jacobian). A body the foundation alone holds (the dirichlet parts
-leave a rigid motion free) gets every contact node closed in that step (its gaps shut,
-dx_n = -h): across an initial gap no node is active at x = 0.
+leave a rigid motion free) with no node active at x = 0 (an initial gap) gets every contact
+node closed in that step (its gaps shut, dx_n = -h).
 The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew). The
 preconditioner of the first step is kept while the solves stay short
 (-newton_pc_reuse, -newton_pc_rebuild_its): the Jacobian differs from step to step only in
@@ -80,11 +80,15 @@ class CoulombNewton(Loop):
         self._rebuild = False
         self.line_search_cuts = 0
         self.continuations = 0           # stalled stages started again with less friction
+        self.watchdog_returns = 0        # returns to the watch point (_stage)
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
-        self.R, self.r, self.dx, self.xt, self.free, self.rhs = \
-            (b.duplicate() for _ in range(6))
+        self.R, self.r, self.dx, self.xt, self.free, self.rhs, self.xw, self.dxw = \
+            (b.duplicate() for _ in range(8))
         A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)   # rows zeroed, restored
+        # A's flags, which changing its rows clears: set again by _restore (A symmetric is
+        # A SPD here: fem.configure_elasticity sets both; petsc4py 3.18 cannot query SPD)
+        self._symmetric = A.isSymmetricKnown() == (True, True)
         self.free.set(1.0)
         self.free.setValues(self.clamped, np.zeros(len(self.clamped)))
         self.free.assemble()
@@ -188,6 +192,9 @@ class CoulombNewton(Loop):
         """A as it was (the Jacobian is A with its contact rows changed)."""
         self._own_rows()
         self.A.assemble()
+        if self._symmetric:
+            self.A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+            self.A.setOption(PETSc.Mat.Option.SPD, True)
 
     def _reaction(self, x):
         """R = A x - b at the contact dofs (from A's own rows, whatever the Jacobian has
@@ -219,7 +226,7 @@ class CoulombNewton(Loop):
         z1, z2 = R[0] / w - rho * X[0], R[1] / w - rho * X[1]
         nz = np.hypot(z1, z2)
         stick = active & (F > 0.0) & (nz <= bound)
-        slip = active & ~stick
+        slip = active & (F > 0.0) & ~stick             # F = 0: R_t = 0, A's own rows
         if sets is not None:
             stick, slip = sets[1], sets[2]
         ns = np.where(nz > 0.0, nz, 1.0)
@@ -245,15 +252,16 @@ class CoulombNewton(Loop):
         Dirichlet values into self.dx. glued: the active nodes with F > 0 all held
         (dx_t = -x_t): the first step from x = 0, whose slip directions are those of the
         load alone and may leave nothing to hold a body held by friction alone; with
-        close_first (a body the foundation alone holds) every contact node is closed too
-        (dx_n = -h): across an open gap no node is active at x = 0, and the Jacobian would
-        be that of a floating body (singular)."""
+        close_first (a body the foundation alone holds) and no node active, every contact
+        node is closed too (dx_n = -h): across an open gap no node is active at x = 0, and
+        the Jacobian would be that of a floating body (singular)."""
         if glued:
             st = dict(st)
-            if self.close_first:      # held by the foundation alone: close every gap
-                st["active"] = np.ones_like(st["active"])
+            if self.close_first and not self.comm.tompi4py().allreduce(
+                    int(st["active"].sum())):  # held by the foundation alone, no node
+                st["active"] = np.ones_like(st["active"])       # active: close every gap
             st["stick"] = st["active"] & (self.F > 0.0)
-            st["slip"] = st["active"] & ~st["stick"]
+            st["slip"] = np.zeros_like(st["stick"])
         _EV_MAT.begin()
         cs, c = self.cs, self.c
         K, rhs = self.A, self.rhs                    # A itself: its contact rows change
@@ -384,14 +392,13 @@ class CoulombNewton(Loop):
                         len(factors) <= self.continuation_levels:
                     factors.append(factors[-1] * self.continuation_factor)
                     start.copy(x)                        # the stage's start again
-                    self._note(it, f"stalled ({self.stall_its} steps without a new lowest "
+                    self._note(it, f"stalled ({self.stall_its} steps without halving the "
                                    f"residual): "
                                    f"starting again with friction F x {factors[-1]:g}")
                 else:
                     if reason == DIVERGED_STAGNATION:
                         self._stall_hint = (
-                            f"{self.stall_its} steps in a row did not lower the "
-                            f"residual" + (
+                            f"{self.stall_its} steps did not halve the residual" + (
                                 f", also with friction continuation down to F x "
                                 f"{factors[-1]:g}" if len(factors) > 1 else "") +
                             "; try -load_steps N, a finer mesh, or -solver_mode faithful")
@@ -403,49 +410,78 @@ class CoulombNewton(Loop):
     def _stage(self, x, scale, it):
         """Newton from x at the friction self.F to self._rtol (relative to scale); it: the
         iterations so far. Returns (it, reason): converged, DIVERGED_STAGNATION,
-        DIVERGED_MAX_IT or DIVERGED_LINEAR_SOLVE."""
+        DIVERGED_MAX_IT or DIVERGED_LINEAR_SOLVE.
+
+        Globalisation, a watchdog (Chamberlain, Powell, Lemarechal, Pedersen 1982): full
+        steps are taken while the residual falls below that of the watch point (the last
+        point of sufficient decrease) within -newton_watchdog steps; a full step that
+        increases it is taken too, up to that many in a row (an active set that must
+        change by many nodes crosses kinks where ||r|| rises on the way). Then the
+        iteration goes back to the watch point and backtracks along its Newton direction
+        (Armijo on ||r||, down to -newton_linesearch_min, that step taken also without a
+        decrease). The stage has stalled when -newton_stall_its steps have not halved the
+        lowest residual."""
         glued = x.norm() == 0.0
         first = it + 1
         nr, st = self._state(x, self.r)
-        reason, eta, nr_old, fails, best = None, self.ew_max, None, 0, nr
+        reason, eta, nr_old, bests = None, self.ew_max, None, [nr]   # lowest ||r|| so far
+        xw, dxw = self.xw, self.dxw
+        x.copy(xw)
+        nrw, stw, kw, save_dir = nr, st, 0, True         # the watch point
         self.residual = nr / scale
         if nr == 0.0:
             reason = CONVERGED_ZERO
         while reason is None:
             it += 1
-            if self.ew and nr_old is not None:           # Eisenstat-Walker, choice 2
-                e = 0.9 * (nr / nr_old) ** 2
-                if 0.9 * eta ** 2 > 0.1:
-                    e = max(e, 0.9 * eta ** 2)
-                eta = min(self.ew_max, e)
-            elif not self.ew:
-                eta = self.ksp_rtol
-            if self.ew:                 # no need to solve below the final tolerance
-                eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
-            K, rhs = self._system(st, glued and it == first)
-            if not self._linear_solve(K, rhs, eta):
-                reason = DIVERGED_LINEAR_SOLVE
-                break
-            # backtracking on ||r||: the shortest step is taken also without a decrease;
-            # -newton_stall_its steps in a row that do not reach below the best residual
-            # of the stage end it as stalled
-            t = 1.0
+            if kw >= max(self.watchdog, 1) or (kw > 0 and self.watchdog == 0):
+                # the watchdog bites: back to the watch point, backtrack along its step
+                xw.copy(x)
+                nr, st = nrw, stw
+                dxw.copy(self.dx)
+                t, monotone = 0.5, True
+                self.line_search_cuts += 1
+                self.watchdog_returns += 1
+            else:
+                if self.ew and nr_old is not None:           # Eisenstat-Walker, choice 2
+                    e = 0.9 * (nr / nr_old) ** 2
+                    if 0.9 * eta ** 2 > 0.1:
+                        e = max(e, 0.9 * eta ** 2)
+                    eta = min(self.ew_max, e)
+                elif not self.ew:
+                    eta = self.ksp_rtol
+                if self.ew:                 # no need to solve below the final tolerance
+                    eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
+                K, rhs = self._system(st, glued and it == first)
+                if not self._linear_solve(K, rhs, eta):
+                    reason = DIVERGED_LINEAR_SOLVE
+                    break
+                if save_dir:
+                    self.dx.copy(dxw)
+                    save_dir = False
+                t, monotone = 1.0, self.watchdog == 0
             while True:
                 self.xt.waxpy(t, self.dx, x)
                 nr_t, st_t = self._state(self.xt, self.r)
-                decrease = nr_t <= (1.0 - 1e-4 * t) * nr
-                if decrease or t <= self.linesearch_min:
+                decrease = nr_t <= (1.0 - 1e-4 * t) * (nrw if not monotone else nr)
+                if decrease or not monotone or t <= self.linesearch_min:
                     break
                 t *= 0.5
                 self.line_search_cuts += 1
-            fails = 0 if nr_t < best else fails + 1
-            best = min(best, nr_t)
+            if decrease:
+                kw, save_dir = 0, True
+            else:
+                kw += 1
+            bests.append(min(bests[-1], nr_t))
             x.swap(self.xt)
             nr_old, nr, st = nr, nr_t, st_t
+            if decrease or monotone:                     # a new watch point
+                x.copy(xw)
+                nrw, stw, kw, save_dir = nr, st, 0, True
             self.n_active = int(st["active"].sum())
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
-            if reason is None and fails >= self.stall_its:
+            if reason is None and len(bests) > self.stall_its and \
+                    bests[-1] > 0.5 * bests[-1 - self.stall_its]:
                 reason = DIVERGED_STAGNATION
             self._monitor(it, self.residual, self._sets_text(t) if self.monitor else "")
         return it, reason

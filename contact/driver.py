@@ -145,6 +145,9 @@ def solve_contact(pr, b, gap, start=None, g0=None):
                     "paper's)")
             if note not in pr.skipped:
                 pr.skipped.append(note)
+            note = "friction rows and the stick/slip sets (F = 0)"
+            if not cs.has_friction and note not in pr.skipped:
+                pr.skipped.append(note)
         elif not cs.has_friction:
             note = "fixed-point loop and prox (F = 0)"
             if note not in pr.skipped:

@@ -37,7 +37,7 @@ class Option(NamedTuple):
 #: the prefixes of our loops, their titles and their own defaults of the common options
 LOOP_PREFIXES = {"fp_": ("FixedPoint", 1e-6, 100), "uzawa_": ("Uzawa", 1e-6, 1000),
                  "apg_": ("APG", 1e-8, 1000000), "ssn_": ("SSN", 1e-10, 100),
-                 "newton_": ("Newton", 1e-11, 60)}
+                 "newton_": ("Newton", 1e-11, 100)}
 #: options every loop reads under its prefix P
 COMMON = (("rtol", float, "TOL", "relative tolerance on the change of the loop's iterate "
            "(newton: on the residual, ||r|| / ||r(0)||)"),
@@ -152,7 +152,11 @@ REGISTRY = [
            "failed one)", "N"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
-    Option("newton_stall_its", 3, int, "steps in a row without a new lowest residual "
+    Option("newton_watchdog", 3, int, "full Newton steps taken also when the residual "
+           "rises, up to N in a row; then back to the last point of decrease and a "
+           "backtracking line search from there (0: a monotone line search every step)",
+           "N"),
+    Option("newton_stall_its", 8, int, "N steps that do not halve the lowest residual "
            "stop the iteration as stalled (then friction continuation, if on)", "N"),
     Option("newton_continuation_factor", 0.3, float, "a stalled iteration starts again from "
            "its start, first solving with friction F x S (then S^2, ... if that stalls too), "

@@ -1,0 +1,157 @@
+"""The default solver's iteration itself (contact/coulomb.py): the first step, the
+globalisation, the linear solves' options, and A after a solve.
+
+* a body the foundation alone holds across a uniform gap g: the solution is the one without
+  the gap moved rigidly by -g along the normal (a closed-form relation; the first step
+  closes every node: before, DIVERGED_BREAKDOWN at step 1);
+* F = 10 on the beam at Nd = 3 (cycling between slip sets, DIVERGED_MAX_IT before): the
+  stall is detected, friction continuation solves it, and the answer is the paper's loops'
+  (fast mode, tight tolerances);
+* with the continuation off the same case ends with DIVERGED_STAGNATION and its hint;
+* step counts on reference scenes: a linearly converging iteration (a wrong Jacobian) breaks
+  them;
+* the glued first step holds the active nodes (x_t = 0 after it);
+* -newton_pc_rebuild_its 0 rebuilds the preconditioner every step; -newton_ew false solves
+  every step to -newton_ksp_rtol; both give the same answer;
+* A gets its values and its symmetric/SPD flags back after a converged and a failed solve;
+* a frictionless scene builds no friction rows (no stick or slip node) and says so.
+"""
+import os
+
+import numpy as np
+import pytest
+from conftest import ROOT, fields, paper_scene, rel_err, solve
+from petsc4py import PETSc
+
+from contact import options, scene as scenes
+from contact.loop import ConvergenceError
+
+BLOCK = os.path.join(ROOT, "runs", "scenes", "block_shear.yaml")
+
+
+def _block(gap=None, nd=4, friction=0.5):
+    sc = scenes.load(BLOCK)
+    sc["mesh"]["nd"] = nd
+    sc["contact"]["friction"] = friction
+    if gap is not None:
+        sc["contact"]["gap"] = gap
+    return scenes.validate(sc)
+
+
+def test_uniform_gap_is_a_rigid_shift():
+    """u(gap g) = u(gap 0) - g e_z at every node and every increment (the body held by the
+    foundation alone: its gap closes rigidly); pressure the same."""
+    g = 1e-4
+    a, b = solve(_block()), solve(_block(g))
+    ua, la = fields(a)
+    ub, lb = fields(b)
+    ub[:, 2] += g
+    assert rel_err(ub, ua) < 1e-8 and rel_err(lb, la) < 1e-8
+    assert b.converged and b.inner.iterations >= 2
+
+
+def _beam(nd=3, friction=10.0):
+    sc = paper_scene(nd=nd, mode="newton", c2f_levels=0)
+    sc["contact"]["friction"] = friction
+    return scenes.validate(sc)
+
+
+def test_stalled_iteration_continues_in_friction():
+    pr = solve(_beam())
+    assert pr.converged and pr.inner.continuations >= 1
+    assert max(pr.residuals.values()) < 1e-9
+    sc = _beam()
+    sc["solver"].update(mode="fast", uzawa_rtol=1e-11, fp_rtol=1e-11, ssn_rtol=1e-13)
+    with options.inserted({"ssn_ksp_rtol": "1e-12"}):
+        ref = solve(scenes.validate(sc))
+    (u, p), (ur, pref) = fields(pr), fields(ref)
+    assert rel_err(u, ur) < 1e-6 and np.abs(p - pref).max() < 1e-6 * np.abs(pref).max()
+
+
+def test_stall_without_continuation_is_named():
+    with options.inserted({"newton_continuation_factor": "0"}):
+        with pytest.raises(ConvergenceError, match="DIVERGED_STAGNATION.*did not halve the "
+                                                   "residual; try -load_steps"):
+            solve(_beam())
+
+
+#: (scene, at most this many Newton steps): measured 8 (beam F = 0.3, Nd 3, cold), 4 (beam
+#: frictionless), 6 (friction-held block, the largest increment); a wrong Jacobian took 19-22
+STEPS = [(lambda: _beam(3, 0.3), 10), (lambda: _beam(3, 0.0), 6)]
+
+
+@pytest.mark.parametrize("case", range(len(STEPS)))
+def test_step_counts(case):
+    make, most = STEPS[case]
+    pr = solve(make())
+    assert pr.converged and 2 <= pr.inner.iterations <= most, pr.inner.iterations
+
+
+def test_step_counts_friction_held_block():
+    pr = solve(_block(nd=4))
+    steps = [e["iterations"]["inner_total"] for e in pr.step_log]
+    assert pr.converged and len(steps) == 4
+    assert max(steps) <= 8 and min(steps) >= 2, steps
+
+
+def test_glued_first_step_holds_the_active_nodes():
+    with options.inserted({"newton_max_it": "1", "newton_error_if_not_converged": "false",
+                           "check_tol": "0"}):
+        pr = solve(_beam(3, 0.3))
+    cs, t, zero = pr.cs, pr.cs.vec(), pr.x.duplicate()
+    zero.set(0.0)
+    active = pr.inner._state(zero, pr.inner.r)[1]["active"]       # at the start, x = 0
+    assert pr.comm.tompi4py().allreduce(int(active.sum())) > 0
+    for k in range(2):
+        cs.gather(pr.x, t, k)
+        assert np.abs(cs.local_array(t)[active]).max(initial=0.0) == 0.0
+
+
+def test_pc_rebuild_and_ew_off_same_answer():
+    ref = solve(_beam(4, 0.3))
+    with options.inserted({"newton_pc_rebuild_its": "0"}):
+        a = solve(_beam(4, 0.3))
+    assert a.inner.pc_setups == a.inner.iterations > ref.inner.pc_setups
+    with options.inserted({"newton_ew": "false"}):
+        b = solve(_beam(4, 0.3))
+    assert b.inner.ksp.getTolerances()[0] == pytest.approx(1e-8)
+    assert b.inner.ksp_iterations > ref.inner.ksp_iterations
+    for pr in (a, b):
+        assert rel_err(fields(pr)[0], fields(ref)[0]) < 1e-7
+
+
+@pytest.mark.parametrize("fail", [False, True], ids=["converged", "failed"])
+def test_A_restored(fail):
+    from contact.problem import ContactProblem
+    pr = ContactProblem(_beam(3, 0.3))
+    A0 = pr.A.copy()
+    assert pr.A.isSymmetricKnown() == (True, True)
+    opts = {"newton_max_it": "1"} if fail else {}
+    with options.inserted(opts):
+        if fail:
+            with pytest.raises(ConvergenceError):
+                pr.solve()
+        else:
+            pr.solve()
+    A0.axpy(-1.0, pr.A)
+    assert A0.norm() == 0.0
+    assert pr.A.isSymmetricKnown() == (True, True)
+
+
+def test_frictionless_builds_no_friction_rows():
+    pr = solve(_beam(3, 0.0))
+    n = pr.inner
+    mpi = pr.comm.tompi4py()
+    assert mpi.allreduce(n.n_stick) == 0 and mpi.allreduce(n.n_slip) == 0
+    assert mpi.allreduce(n.n_active) > 0
+    assert any("friction rows" in s for s in pr.skipped)
+
+
+def test_load_steps_option_is_an_integer():
+    opts = PETSc.Options()
+    opts.setValue("load_steps", "4")
+    try:
+        sc = scenes.from_options(opts)
+    finally:
+        opts.delValue("load_steps")
+    assert sc["loading"]["steps"] == 4 and isinstance(sc["loading"]["steps"], int)
