@@ -16,6 +16,8 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   thin      plates and walls of aspect ratio 1:100
   elements  elongated and flat hexahedra
   fvar      F varying over the contact face (F = 0 on part of it), malformed F
+  fgrid     the default solver on the beam, F from 0 to 100 x Nd from 2 to 20
+  gaps      bodies held by the foundation alone across uniform, varying, tilted gaps
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
 stdout.txt, stderr.txt and run.json (options, outcome, error, wall time); a row whose
 run.json records the same options is reused, failed or not (--force reruns). Rows that
@@ -223,6 +225,31 @@ def cases_fvar():
             row("fvar-negative", "0.3-0.2*x", "invalid: F < 0 for x > 1.5"),
             row("fvar-syntax", "0.3*(x>1.5", "invalid: unbalanced parenthesis"),
             row("fvar-name", "mu*x", "invalid: unknown name")]
+
+
+def cases_fgrid():
+    """The default solver on the beam, F from 0 to 100 at every Nd from 2 to 20."""
+    return [Case(f"fgrid-nd{n}-F{f}", f"beam, F = {f}, Nd = {n}",
+                 nd(n) + ["-friction", f] + NEWTON)
+            for n in (2, 3, 4, 5, 6, 7, 8, 10, 12, 16, 20)
+            for f in ("0", "0.1", "0.3", "1", "3", "10", "30", "100")]
+
+
+#: the gap-supported block's variants: id -> scene options
+GAPS = {"uniform": [],
+        "varying-x": ["-scene_contact_gap", "1e-4*(1+x)"],
+        "varying-xy": ["-scene_contact_gap", "1e-4*(1+x*y)"],
+        "tilted": ["-scene_contact_foundation_normal_0", "0.05",
+                   "-scene_contact_foundation_normal_1", "0.03"]}
+
+
+def cases_gaps():
+    """A block the foundation alone holds across a gap (runs/scenes/block_gap.yaml), pressed
+    then sheared in 4 increments."""
+    scene = ["-scene", os.path.join(SCENES, "block_gap.yaml")]
+    return [Case(f"gap-{v}-nd{n}-F{f}", f"block on a {v} gap, F = {f}, Nd = {n}",
+                 scene + nd(n) + ["-friction", f] + o + NEWTON)
+            for v, o in GAPS.items() for n in (2, 4, 6, 8) for f in ("0.5", "1", "10", "100")]
 
 
 # -- running -------------------------------------------------------------------------------
@@ -667,6 +694,28 @@ def findings_newton(R):
            "; no other row fails."))
 
 
+def _grid_findings(R, prefix, what):
+    ok = [i for i in R.results if i.startswith(prefix) and R.ok(i)]
+    rows = [i for i in R.results if i.startswith(prefix)]
+    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
+    return (f"The default solver converges on {len(ok)} of {len(rows)} rows ({what}; Newton "
+            f"steps on the finest mesh {span(its)}, over all increments; max residual "
+            f"{R.max_res(ok)}). Failed: {R.failures(prefix) or 'none'}.")
+
+
+def findings_fgrid(R):
+    return _grid_findings(R, "fgrid-", "F from 0 to 100, Nd from 2 to 20") + (
+        " Before the watchdog and the friction continuation (coulomb.py) F = 10 at Nd = 3 "
+        "and F = 30 and 100 at Nd = 6 (and so at Nd = 12, started from Nd = 6) ended in "
+        "DIVERGED_MAX_IT, cycling between two slip sets.")
+
+
+def findings_gaps(R):
+    return _grid_findings(R, "gap-", "uniform, varying and tilted gaps, F from 0.5 to 100") \
+        + (" Before the closing first step every row failed at step 1 (KSP "
+           "DIVERGED_BREAKDOWN: no node active at x = 0, the Jacobian of a floating body).")
+
+
 def findings_fvar(R):
     fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
           if R.summary(i) and R.summary(i)["iterations"]["fixed_point"]]
@@ -718,6 +767,15 @@ GROUPS = {
                "F = 2 and 100 at Nd = 10 and 20, F with jumps, a tangential load that turns, "
                "the friction-held block, the incline, Hertz, nu = 0.4999 at Nd = 10.",
                cases_newton, findings_newton),
+    "fgrid": ("The default solver: F against Nd",
+              "The paper's beam in the default mode, F = 0, 0.1, 0.3, 1, 3, 10, 30, 100 at "
+              "Nd = 2 to 8, 10, 12, 16, 20 (coarse-to-fine start from Nd = 4 up).",
+              cases_fgrid, findings_fgrid),
+    "gaps": ("Bodies held by the foundation alone across a gap",
+             "runs/scenes/block_gap.yaml (a unit block, no clamp, pressed then sheared in 4 "
+             "increments, q = 0.8 p) on a uniform gap 1e-4, gaps 1e-4 (1 + x) and "
+             "1e-4 (1 + x y), and a tilted foundation (normal (0.05, 0.03, 1)), F = 0.5 to "
+             "100, Nd = 2 to 8.", cases_gaps, findings_gaps),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar, findings_fvar),
@@ -726,7 +784,8 @@ GROUPS = {
 #: --smoke: one or two cheap rows per group, two malformed inputs among them
 SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "load-press-300", "thin-plate-nd1", "elem-1x3x3-nd2", "fvar-half", "fvar-negative",
-         "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear")
+         "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
+         "fgrid-nd3-F10", "gap-varying-xy-nd2-F10")
 
 
 def main(argv=None):
@@ -741,6 +800,9 @@ def main(argv=None):
     ap.add_argument("--record", default=None,
                     help="markdown (default runs/results/stability.md; --smoke: "
                          "OUT_DIR/stability.md)")
+    ap.add_argument("--record-only", action="store_true",
+                    help="the record holds the --only groups alone (e.g. into a record of "
+                         "their own, --record FILE)")
     args = ap.parse_args(argv)
     if args.smoke and args.out_dir is None:
         ap.error("--smoke needs --out-dir (it must not write into runs/)")
@@ -748,7 +810,8 @@ def main(argv=None):
     record = args.record or (os.path.join(out, "stability.md") if args.smoke else RECORD)
     keep = (lambda c: c.id in SMOKE) if args.smoke else (lambda c: True)
     groups = {name: (title, intro, [c for c in make() if keep(c)], findings)
-              for name, (title, intro, make, findings) in GROUPS.items()}
+              for name, (title, intro, make, findings) in GROUPS.items()
+              if not (args.record_only and args.only) or name in args.only}
     os.makedirs(out, exist_ok=True)
     t0 = time.perf_counter()
     support = option_support((c for g in groups.values() for c in g[2]), out)

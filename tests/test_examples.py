@@ -156,7 +156,7 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Findings.**") == 9                     # every group's findings render
+    assert md.count("**Findings.**") == 11                    # every group's findings render
     row = {c[0]: c for c in (table_rows(md, i)[0] for i in
                              ("F-fast-nd4-0.3", "load-press-300", "fvar-negative",
                               "fvar-syntax", "F-fast-relax-0.6"))}
@@ -167,6 +167,8 @@ def test_stability(tmp_path):
         assert row[bad][4].startswith("failed: `contact: error: friction")
         assert "traceback" not in row[bad][11].lower()
     assert row["F-fast-relax-0.6"][4] != "not run (no cached result)"
+    for ok in ("fgrid-nd3-F10", "gap-varying-xy-nd2-F10"):    # the default solver's groups
+        assert table_rows(md, ok)[0][4] == "converged"
 
 
 def test_table1(tmp_path):
