@@ -18,8 +18,10 @@ with c = F a_n / |z| in [0, 1), n = z/|z| and P = I - n n^T, the rows multiplied
     A_t - F n A_n + w rho c/(1-c) P (on x_t) + w F rho n (on x_n)
 (nonsymmetric through F n A_n: GMRES, right-preconditioned, with geometric multigrid on
 the mesh hierarchy (multigrid.py; GAMG on a mesh of one level); options prefix
--newton_). A backtracking line search on the residual norm globalises the step (the full
-step can cycle between two slip sets). Stop when ||r|| <= rtol ||r(0)|| (-newton_rtol).
+-newton_). Globalisation (`_stage`, `_iterate`): a watchdog on the residual norm (full
+steps, rises allowed -newton_watchdog times in a row, then backtracking from the last point
+of decrease); a stage that stalls (cycling between two slip sets at a large F) starts again
+with friction continuation, else DIVERGED_STAGNATION. Stop when ||r|| <= rtol ||r(0)|| (-newton_rtol).
 From x = 0 the first step holds every active node (glued): from there the slip directions
 are the solution's own, not the bare load's (a body held by friction alone would otherwise
 get a singular first Jacobian). A body the foundation alone holds (the dirichlet parts
@@ -80,7 +82,6 @@ class CoulombNewton(Loop):
         self._rebuild = False
         self.line_search_cuts = 0
         self.continuations = 0           # stalled stages started again with less friction
-        self.watchdog_returns = 0        # returns to the watch point (_stage)
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
         self.R, self.r, self.dx, self.xt, self.free, self.rhs, self.xw, self.dxw = \
@@ -113,6 +114,8 @@ class CoulombNewton(Loop):
         if not 0.0 <= self.continuation_factor < 1.0:
             raise ValueError(f"-newton_continuation_factor must be in [0, 1), got "
                              f"{self.continuation_factor}")
+        if self.watchdog < 0:
+            raise ValueError(f"-newton_watchdog must be >= 0, got {self.watchdog}")
         if self.stall_its < 1:
             raise ValueError(f"-newton_stall_its must be >= 1, got {self.stall_its}")
         if self.continuation_levels < 0:
@@ -362,8 +365,8 @@ class CoulombNewton(Loop):
 
     def _iterate(self, x):
         """The Newton iteration (see the module) with friction continuation when it stalls:
-        a stage that stalls (-newton_stall_its failed line searches in a row) starts again
-        from its start, first solving with friction F x S (S^2, ... if that stalls too;
+        a stage that stalls (-newton_stall_its steps without halving the residual) starts
+        again from its start, first solving with friction F x S (S^2, ... if that stalls too;
         -newton_continuation_factor S, -newton_continuation_levels), then at F from that
         solution. Returns (iterations over all stages, reason)."""
         x0 = x.duplicate()
@@ -392,6 +395,7 @@ class CoulombNewton(Loop):
                         len(factors) <= self.continuation_levels:
                     factors.append(factors[-1] * self.continuation_factor)
                     start.copy(x)                        # the stage's start again
+                    self.continuations += 1
                     self._note(it, f"stalled ({self.stall_its} steps without halving the "
                                    f"residual): "
                                    f"starting again with friction F x {factors[-1]:g}")
@@ -433,14 +437,14 @@ class CoulombNewton(Loop):
             reason = CONVERGED_ZERO
         while reason is None:
             it += 1
-            if kw >= max(self.watchdog, 1) or (kw > 0 and self.watchdog == 0):
+            if 0 < self.watchdog <= kw:
                 # the watchdog bites: back to the watch point, backtrack along its step
+                # (its full step was the first of the kw taken)
                 xw.copy(x)
                 nr, st = nrw, stw
                 dxw.copy(self.dx)
                 t, monotone = 0.5, True
                 self.line_search_cuts += 1
-                self.watchdog_returns += 1
             else:
                 if self.ew and nr_old is not None:           # Eisenstat-Walker, choice 2
                     e = 0.9 * (nr / nr_old) ** 2
@@ -467,16 +471,14 @@ class CoulombNewton(Loop):
                     break
                 t *= 0.5
                 self.line_search_cuts += 1
-            if decrease:
-                kw, save_dir = 0, True
-            else:
-                kw += 1
             bests.append(min(bests[-1], nr_t))
             x.swap(self.xt)
             nr_old, nr, st = nr, nr_t, st_t
             if decrease or monotone:                     # a new watch point
                 x.copy(xw)
                 nrw, stw, kw, save_dir = nr, st, 0, True
+            else:                                        # a full step without decrease
+                kw += 1
             self.n_active = int(st["active"].sum())
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
@@ -488,7 +490,6 @@ class CoulombNewton(Loop):
 
     def _note(self, it, text):
         """A line of the monitor about the iteration itself (continuation)."""
-        self.continuations += text.startswith("stalled")
         if self.monitor:
             self.log(f"{' ' * self.indent}{it:6d} {self.title} {text}")
 

@@ -17,9 +17,11 @@ Cases: the paper's beam (F = 0.3; F varying in space), a tilted foundation with 
 gap, a uniform gap with a body the foundation alone holds (the closing first step), and the
 friction-held block on the incline. On 1 and 2 ranks.
 """
+import os
+
 import numpy as np
 import pytest
-from conftest import paper_scene
+from conftest import ROOT, paper_scene
 from petsc4py import PETSc
 
 from contact import scene as scenes
@@ -38,8 +40,6 @@ def _beam(friction=0.3, **contact):
 
 
 def _incline():
-    import os
-    from conftest import ROOT
     sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "block_incline.yaml"))
     sc["mesh"]["nd"] = 4
     sc["solver"].pop("mode", None)
@@ -48,8 +48,6 @@ def _incline():
 
 def _gap_block():
     """A block on the foundation across a uniform gap, pressed and sheared (no clamp)."""
-    import os
-    from conftest import ROOT
     sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "block_shear.yaml"))
     sc["mesh"]["nd"] = 4
     sc["loading"]["steps"] = 1
