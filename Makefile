@@ -8,6 +8,8 @@ PY       := $(VENV)/bin/python
 STAMP    := $(VENV)/.installed
 NP       ?= 2
 ARGS     ?= -nd 10 -newton_converged_reason
+#: what make run / run2 write before ARGS (ARGS can override it: the last one wins)
+RUN_OPTS ?= -output_formats h5,xdmf,json,png
 DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
             python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
 PIP_PKGS := pymetis clarabel gmsh
@@ -62,10 +64,10 @@ $(STAMP): setup.py Makefile
 	@touch $(STAMP)
 
 run: install
-	$(PY) -m contact $(ARGS)
+	$(PY) -m contact $(RUN_OPTS) $(ARGS)
 
 run2: install
-	$(MPIRUN) $(PY) -m contact $(ARGS)
+	$(MPIRUN) $(PY) -m contact $(RUN_OPTS) $(ARGS)
 
 # ParaView renders the last run (the newest runs/out/*/solution.xdmf, or VIEW_DIR):
 # contact/pvview.py under pvbatch checks that it finds every field of the XDMF and writes

@@ -116,6 +116,7 @@ class Face:
                                              edgecolor="0.5", hatch="///", linewidth=0.3))
 
     def field(self, fig, ax, values, title, label, cmap="viridis", vmin=None, vmax=None):
+        """values at the contact nodes, drawn on the face, with a colour bar in ax.cax."""
         self.frame(ax, title)
         if self.tri is None:
             return
@@ -133,7 +134,8 @@ class Face:
             ax.add_collection(PolyCollection(self.shares[part],
                                              array=values[self.share_node[part]], cmap=cmap,
                                              norm=m.norm, edgecolor="face", linewidth=0.2))
-        fig.colorbar(m, ax=ax, label=label, shrink=0.9)
+        ax.cax.set_visible(True)
+        fig.colorbar(m, cax=ax.cax, label=label)
 
 
 def _no_friction(face, ax, title):
@@ -144,25 +146,40 @@ def _no_friction(face, ax, title):
 
 
 def _panels(face, n=2):
-    """A figure with n panels, side by side for a squarish face, stacked for a long one."""
+    """A figure with n panels, side by side for a squarish face, stacked for a long one.
+
+    A fixed layout in inches (each panel: its titles above, the axes, a colour-bar slot
+    ax.cax, hidden until a field is drawn, then the axis labels and a legend's room below):
+    matplotlib's constrained layout measured every tick label again for each figure and
+    took half of the figures' time."""
     a = face.aspect
-    if a >= 1.6:
-        w = 9.0
-        h = n * (w / a * 0.85 + 0.9) + 0.6
-        fig, axes = plt.subplots(n, 1, figsize=(w, min(h, 14.0)), constrained_layout=True)
-    else:
-        w = 5.2 * n
-        h = 5.2 / max(a, 0.4) * 0.85 + 0.9
-        fig, axes = plt.subplots(1, n, figsize=(w, min(h, 12.0)), constrained_layout=True)
-    return fig, np.atleast_1d(axes)
+    stacked = a >= 1.6
+    W = 6.8 if stacked else 3.6                       # the axes, inches
+    H = min(W / max(a, 1e-3), 9.0)
+    L, CB, R, T, B, TOP = 0.75, 0.35, 0.95, 0.75, 0.95, 0.4
+    pw, ph = L + W + CB + R, T + H + B                # one panel's cell
+    cols, rows = (1, n) if stacked else (n, 1)
+    fw, fh = cols * pw, rows * ph + TOP
+    fig = plt.figure(figsize=(fw, fh))
+    axes = []
+    for k in range(n):
+        i, j = (0, k) if stacked else (k, 0)          # column, row (from the top)
+        x0, y0 = i * pw + L, fh - TOP - (j + 1) * ph + B
+        ax = fig.add_axes((x0 / fw, y0 / fh, W / fw, H / fh))
+        ax.cax = fig.add_axes(((x0 + W + 0.15) / fw, (y0 + 0.05 * H) / fh, 0.15 / fw,
+                               0.9 * H / fh))
+        ax.cax.set_visible(False)
+        axes.append(ax)
+    return fig, axes
 
 
 def _title(fig, data, what):
-    fig.suptitle(f"{data['name']}, Nd = {data['nd']}: {what}", fontsize=12)
+    fig.suptitle(f"{data['name']}, Nd = {data['nd']}: {what}", fontsize=12,
+                 y=1.0 - 0.12 / fig.get_figheight(), va="top")
 
 
 def _save(fig, path):
-    fig.savefig(path, dpi=DPI, format="png")
+    fig.savefig(path, dpi=DPI, format="png", pil_kwargs={"compress_level": 1})
     plt.close(fig)
 
 
@@ -306,7 +323,8 @@ def load_path(data, path):
     t = np.array([s["t"] for s in steps])
     N = np.array([s["normal"] for s in steps])
     T = np.array([s["tangential"] for s in steps])
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4), constrained_layout=True)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4))
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.84, wspace=0.25)
     a1.plot(t, N, "o-", label="normal N = n · ΣR")
     a1.plot(t, T, "s-", label="tangential |T|")
     F = data["friction"]
