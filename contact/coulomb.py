@@ -82,6 +82,7 @@ class CoulombNewton(Loop):
         self._rebuild = False
         self.line_search_cuts = 0
         self.continuations = 0           # stalled stages started again with less friction
+        self.frictions = []              # the friction factor of each stage, in order
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
         self.R, self.r, self.dx, self.xt, self.free, self.rhs, self.xw, self.dxw = \
@@ -377,34 +378,42 @@ class CoulombNewton(Loop):
         if scale == 0.0:
             return 0, CONVERGED_ZERO
         F, rtol = self.F, self._rtol
-        factors, start, it = [1.0], x.copy(), 0
+        # factors: the frictions F x factor still to reach (the last one first); base: the
+        # factor whose solution x is at the stage's start (None: not a solution yet)
+        factors, base, start, it = [1.0], None, x.copy(), 0
         can_continue = self.continuation_factor > 0.0 and \
             self.comm.tompi4py().allreduce(bool((F > 0.0).any()), op=MPI.LOR)
         try:
             while True:
                 self.F = F * factors[-1]
+                self.frictions.append(factors[-1])
                 self._rtol = rtol if len(factors) == 1 else max(rtol, 1e-8)
                 x.copy(start)
                 it, reason = self._stage(x, scale, it)
                 if reason in (CONVERGED_RTOL, CONVERGED_ZERO):
-                    factors.pop()
+                    base = factors.pop()
                     if not factors:
                         return it, reason
-                    self._note(it, f"continuation: friction F x {factors[-1]:g} from here")
+                    self._note(it, f"continuation: friction F x {factors[-1]:.3g} from here")
                 elif reason == DIVERGED_STAGNATION and can_continue and \
                         len(factors) <= self.continuation_levels:
-                    factors.append(factors[-1] * self.continuation_factor)
+                    # from the stage's start: a smaller friction, or, when that start is
+                    # the solution at F x base, halfway (geometrically) from base, so that
+                    # a climb that stalled is not tried again the same way
+                    f = factors[-1]
+                    factors.append(f * self.continuation_factor if base is None
+                                   else (base * f) ** 0.5)
                     start.copy(x)                        # the stage's start again
                     self.continuations += 1
                     self._note(it, f"stalled ({self.stall_its} steps without halving the "
                                    f"residual): "
-                                   f"starting again with friction F x {factors[-1]:g}")
+                                   f"starting again with friction F x {factors[-1]:.3g}")
                 else:
                     if reason == DIVERGED_STAGNATION:
                         self._stall_hint = (
                             f"{self.stall_its} steps did not halve the residual" + (
                                 f", also with friction continuation down to F x "
-                                f"{factors[-1]:g}" if len(factors) > 1 else "") +
+                                f"{min(factors):.3g}" if len(factors) > 1 else "") +
                             "; try -load_steps N, a finer mesh, or -solver_mode faithful")
                     return it, reason
         finally:

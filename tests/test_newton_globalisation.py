@@ -8,6 +8,10 @@ globalisation, the linear solves' options, and A after a solve.
   stall is detected, friction continuation solves it, and the answer is the paper's loops'
   (fast mode, tight tolerances);
 * with the continuation off the same case ends with DIVERGED_STAGNATION and its hint;
+* F = 100 at Nd = 6 with -newton_stall_its 4: the climb from F x 0.3 back to F stalls, and
+  the next try starts halfway (F x sqrt(0.3)) instead of repeating the climb that stalled
+  (F = 100 at Nd = 16 cycled that way to DIVERGED_MAX_IT); the answer is that of the
+  default stall test (another path), and its residuals are those of a solution;
 * step counts on reference scenes: a linearly converging iteration (a wrong Jacobian) breaks
   them;
 * the glued first step holds the active nodes (x_t = 0 after it);
@@ -73,6 +77,20 @@ def test_stall_without_continuation_is_named():
         with pytest.raises(ConvergenceError, match="DIVERGED_STAGNATION.*did not halve the "
                                                    "residual; try -load_steps"):
             solve(_beam())
+
+
+def test_a_stalled_climb_goes_halfway():
+    with options.inserted({"newton_stall_its": "4"}):
+        pr = solve(_beam(6, 100.0))
+    path = pr.inner.frictions
+    assert pr.converged and max(pr.residuals.values()) < 1e-9
+    i = next(k for k in range(2, len(path)) if path[k] == 1.0)   # the first climb back to F
+    assert path[i - 1] == pytest.approx(0.3) and path[i + 1] == pytest.approx(0.3 ** 0.5)
+    assert path[-1] == 1.0
+    ref = solve(_beam(6, 100.0))                                # stall 8: another path
+    assert ref.inner.frictions != path
+    (u, p), (ur, pref) = fields(pr), fields(ref)
+    assert rel_err(u, ur) < 1e-8 and np.abs(p - pref).max() < 1e-8 * np.abs(pref).max()
 
 
 #: (scene, at most this many Newton steps): measured 8 (beam F = 0.3, Nd 3, cold), 4 (beam
