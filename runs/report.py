@@ -1,28 +1,37 @@
-"""Error against run time of the solver variants on the paper's beam, and mesh convergence.
+"""Error against run time on the paper's beam: what an accuracy costs with the default
+solver (total error, solver + discretisation, against whole-process time), what `make run`
+costs, and the solver's own error against its tolerance beside the paper's loops.
 
-    .venv/bin/python runs/report.py                 # Nd = 6 and 12 (the defaults, < 12 min)
-    .venv/bin/python runs/report.py --nd 8 16       # other sizes
+    .venv/bin/python runs/report.py                 # everything (about 30 min from scratch)
+    .venv/bin/python runs/report.py --nd 8 16       # other sizes of the tolerance sweeps
+    .venv/bin/python runs/report.py --total-nd 4 8 16 32   # other sizes of the total error
     .venv/bin/python runs/report.py --quick         # smoke run: tiny sizes, 2 tolerances
     .venv/bin/python runs/report.py --force         # re-run cases whose results exist
     .venv/bin/python runs/report.py --smoke --out-dir DIR   # tests: Nd = 2, 1 tolerance
 
-What it does, for each size Nd:
-  1. two reference solutions at tolerance 1e-12 from two different variants (SSN with an
-     iterative linear solver, and APG with restart, or SSN with a direct solver where APG
-     would be too slow), and how well they agree;
-  2. a tolerance sweep of each solver variant (faithful FISTA, FISTA + gradient restart,
-     diagonal metric + restart, semismooth Newton, -solver_mode fast); each run is
-     compared with the first reference: relative L2 error of the displacement over all
-     nodes, relative max-norm error of the contact pressure over the contact nodes, and
-     relative energy error; time = time_s.solve of summary.json;
-  3. mesh convergence with -solver_mode fast at tight tolerance (Nd = 2, 4, 8, 16 by
-     default): energy, max |u|, displacement at the corner (3, 1, 1), and the difference
-     to the finest mesh at the nodes the meshes share.
+What it does:
+  1. make run: its command (the Makefile's ARGS) with and without the figures, three fresh
+     runs each, whole-process wall time;
+  2. total error: the default solver as a user runs it (mpirun -n 2 python -m contact
+     -nd N) for Nd = 4 .. 80; max |u|, the contact force N and the energy J against their
+     continuum values, extrapolated from the finest runs with an error estimate
+     (contact/validation/convergence.py); the cost (Nd, whole-process time) of 10 %, 1 %
+     and 0.1 % in each;
+  3. for each size Nd of the sweeps (6 and 12): two reference solutions at tolerance 1e-12
+     from two different variants (SSN with an iterative linear solver, and APG with
+     restart, or SSN with a direct solver where APG would be too slow), and how well they
+     agree; a tolerance sweep of the default solver (newton) and of the paper's loops'
+     variants (faithful FISTA, FISTA + gradient restart, diagonal metric + restart,
+     semismooth Newton inner solver, -solver_mode fast), each compared with the first
+     reference: relative L2 error of the displacement over all nodes, relative max-norm
+     error of the contact pressure over the contact nodes, and relative energy error;
+     time = time_s.solve of summary.json.
 Each case is a subprocess `python -m contact -nd N -output_dir runs/out/report/<case> ...`
 (runs/out is git-ignored scratch; --out-dir) run by contact/validation/harness.py; a case
 whose summary.json exists is not run again unless --force (a case that timed out is
-remembered too). Outputs (--record): runs/results/report.md and, beside it,
-runs/results/report/error_vs_time_nd<N>.png, report/mesh_convergence.png, report/data.json.
+remembered too; the make run timings are always fresh). Outputs (--record):
+runs/results/report.md and, beside it, report/total_error_vs_time.png,
+report/error_vs_time_nd<N>.png and report/data.json.
 """
 import argparse
 import json
@@ -32,10 +41,27 @@ import time
 
 import numpy as np
 
-from contact.validation import harness
+from contact.validation import convergence, harness
 
 ROOT = harness.ROOT
-CORNER = (3.0, 1.0, 1.0)
+#: the quantities of the total-error study: key, name, value from summary.json
+QUANTITIES = (("umax", "max |u|", lambda s: s["max_displacement"]),
+              ("force", "contact force N", lambda s: s["contact_result"]["normal"]),
+              ("energy", "energy J", lambda s: s["energy"]))
+LEVELS = (1e-1, 1e-2, 1e-3)                      # the accuracies whose cost is read off
+TOTAL_NDS = [4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80]
+
+
+def _make_run_args():
+    """ARGS of the Makefile's run target (what `make run` solves), read from the Makefile."""
+    import re
+    import shlex
+    with open(os.path.join(ROOT, "Makefile")) as f:
+        m = re.search(r"^ARGS\s*\?=\s*(.*)$", f.read(), re.M)
+    return shlex.split(m.group(1)) if m else ["-nd", "10"]
+
+
+MAKE_RUN_ARGS = _make_run_args()
 FLOOR = 1e-16                     # errors are clipped to this for the log plots
 LOAD = os.getloadavg()            # the machine's load when the script started
 
@@ -57,6 +83,12 @@ def t(x):
 #: sizes ("small": only the smallest Nd), per-case timeout (s)
 LOOPS = ["-solver_mode", "faithful"]   # the paper's loops (the default is the newton mode)
 VARIANTS = {
+    "newton": dict(
+        label="newton (default): whole-problem semismooth Newton",
+        base=["-solver_mode", "newton"],
+        knob=lambda x: ["-newton_rtol", t(x)], knob_text="-newton_rtol tol",
+        tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-11, 1e-12], tols_large=[1e-4, 1e-6, 1e-8, 1e-11],
+        quick=[1e-4, 1e-8], sizes="all", timeout=120),
     "faithful": dict(
         label="faithful FISTA (paper)", base=LOOPS,
         knob=lambda x: ["-apg_rtol", t(x), "-uzawa_rtol", t(outer(x)), "-fp_rtol", t(outer(x))],
@@ -88,11 +120,6 @@ VARIANTS = {
         knob=lambda x: ["-uzawa_rtol", t(x), "-fp_rtol", t(x), "-ssn_rtol", t(min(1e-10, x))],
         knob_text="-uzawa_rtol tol -fp_rtol tol -ssn_rtol min(1e-10, tol)",
         tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-12], quick=[1e-4, 1e-8], sizes="all", timeout=120),
-    "newton": dict(
-        label="newton (default): whole-problem semismooth Newton",
-        base=["-solver_mode", "newton"],
-        knob=lambda x: ["-newton_rtol", t(x)], knob_text="-newton_rtol tol",
-        tols=[1e-4, 1e-6, 1e-8, 1e-10, 1e-12], quick=[1e-4, 1e-8], sizes="all", timeout=120),
 }
 
 #: reference solutions: the first is the one errors are measured against
@@ -109,9 +136,6 @@ REF_MUMPS = ("ref-mumps", "SSN, CG + MUMPS Cholesky",
              LOOPS + ["-uzawa_inner", "ssn", "-ssn_rtol", "1e-13", "-uzawa_rtol", "1e-12",
                       "-fp_rtol", "1e-12", "-ssn_ksp_type", "cg", "-ssn_pc_type", "cholesky",
               "-ssn_pc_factor_mat_solver_type", "mumps", "-ssn_ksp_rtol", "1e-12"])
-MESH_OPTS = ["-solver_mode", "fast", "-uzawa_rtol", "1e-10", "-fp_rtol", "1e-10",
-             "-ssn_rtol", "1e-12"]
-
 
 # -- running cases -----------------------------------------------------------------------
 def run_case(name, nd, opts, timeout, args, log):
@@ -201,64 +225,59 @@ def sweep(nd, small, args, log, unavailable):
     return out
 
 
-def mesh_convergence(nds, args, log):
-    """Fast-mode runs at tight tolerance on each Nd, compared with the finest mesh."""
-    runs = [run_case(f"mesh-nd{n}", n, MESH_OPTS, args.mesh_timeout, args, log)
-            for n in nds]
-    ok = [r for r in runs if r["status"] == "ok"]
-    if not ok:
-        return {"rows": [], "finest": None, "runs": runs}
-    fine = ok[-1]
-    key = {tuple(k): i for i, k in enumerate(np.round(fine["xyz"], 9))}
+TOTAL = "total"      # the directory prefix of the total-error runs
+
+
+def total_study(nds, args, log):
+    """The default solver as a user runs it (no option but -nd) on each Nd, on
+    args.total_np ranks: whole-process wall time, and each quantity's total error
+    (solver + discretisation) against its continuum value (convergence.continuum over the
+    runs). Returns {"rows", "limits", "costs", "np"}."""
     rows = []
-    ucf = corner(fine)
-    for r in runs:
-        row = {"nd": r["nd"], "status": r["status"]}
-        if r["status"] == "ok":
-            s = r["summary"]
-            idx = [key.get(tuple(k)) for k in np.round(r["xyz"], 9)]
-            mine = np.array([i is not None for i in idx])
-            fi = np.array([i for i in idx if i is not None], dtype=int)
-            uc = corner(r)
-            row.update(
-                dofs=s["dofs"], time=s["time_s"]["solve"], energy=s["energy"],
-                umax=s["max_displacement"], corner=uc.tolist(), common=int(mine.sum()),
-                e_u=float(np.linalg.norm(r["u"][mine] - fine["u"][fi])
-                          / np.linalg.norm(fine["u"][fi])),
-                e_J=float(abs(s["energy"] - fine["summary"]["energy"])
-                          / abs(fine["summary"]["energy"])),
-                e_c=float(np.linalg.norm(uc - ucf) / np.linalg.norm(ucf)),
-                e_max=float(abs(s["max_displacement"] - fine["summary"]["max_displacement"])
-                            / fine["summary"]["max_displacement"]),
-                converged=s["converged"])
+    for n in nds:
+        r = harness.run_case(os.path.join(args.out_dir, f"{TOTAL}-np{args.total_np}-nd{n}"),
+                             ["-nd", n], args.total_np, timeout=args.total_timeout,
+                             force=args.force, check=False, log=log)
+        row = {"nd": n, "status": r.status, "wall": r.wall, "cpu": r.cpu,
+               "error": r.error if r.status == "failed" else None}
+        if r.ok:
+            s = r.summary
+            row.update(dofs=s["dofs"], solve=s["time_s"]["solve"], setup=s["time_s"]["setup"],
+                       newton=s["iterations"]["inner_total"],
+                       residual=max(s["residuals"].values()), converged=s["converged"],
+                       rss=sum(s["peak_rss_mib"]),
+                       values={k: float(f(s)) for k, _, f in QUANTITIES})
         rows.append(row)
-    return {"rows": rows, "finest": fine["nd"], "extrapolation": extrapolate(rows),
-            "runs": runs}
-
-
-def corner(c):
-    """Displacement at the node nearest CORNER."""
-    return c["u"][np.argmin(np.linalg.norm(c["xyz"] - np.array(CORNER), axis=1))]
-
-
-def extrapolate(rows):
-    """Richardson estimate from the three finest meshes if they double: observed order p
-    of the energy and of the corner displacement, and the estimated error of the finest."""
     ok = [r for r in rows if r["status"] == "ok"]
-    if len(ok) < 3 or not (ok[-1]["nd"] == 2 * ok[-2]["nd"] == 4 * ok[-3]["nd"]):
-        return None
-    out = {"nds": [r["nd"] for r in ok[-3:]]}
-    for name, val in (("energy", lambda r: r["energy"]),
-                      ("corner", lambda r: np.linalg.norm(r["corner"]))):
-        a, b, c = (val(r) for r in ok[-3:])
-        if (a - b) * (b - c) <= 0 or abs(a - b) <= abs(b - c):
-            out[name] = None          # not monotone, or not (yet) converging
-            continue
-        p = np.log2((a - b) / (b - c))
-        lim = c + (c - b) / (2 ** p - 1)
-        out[name] = {"order": float(p), "limit": float(lim),
-                     "err_finest": float(abs(c - lim) / abs(lim)),
-                     "err": {r["nd"]: float(abs(val(r) - lim) / abs(lim)) for r in ok}}
+    limits, costs = {}, {}
+    if len(ok) >= 2:
+        for k, _, _ in QUANTITIES:
+            L = convergence.continuum([r["nd"] for r in ok], [r["values"][k] for r in ok])
+            L["relative_error"] = L["error"] / abs(L["value"])
+            limits[k] = L
+            for r in ok:
+                r.setdefault("err", {})[k] = abs(r["values"][k] - L["value"]) / abs(L["value"])
+            data = [(r["nd"], r["dofs"], r["wall"], r["err"][k]) for r in ok]
+            costs[k] = {lvl: (None if L["relative_error"] > lvl / 3 else
+                              convergence.cost(data, lvl, L["order"])) for lvl in LEVELS}
+    return {"rows": rows, "limits": limits, "costs": costs, "np": args.total_np}
+
+
+def make_run_cost(args, log, repeat=3):
+    """The whole process of `make run` (its RUN_OPTS and ARGS, Nd = 10) with and without
+    the figures, `repeat` times each (fresh runs, never cached): median wall time, s."""
+    out = {}
+    for name, fmt in (("with figures", "h5,xdmf,json,png"), ("without figures",
+                                                             "h5,xdmf,json")):
+        walls = []
+        for i in range(repeat):
+            r = harness.run_case(os.path.join(args.out_dir, f"makerun-{fmt.count(',')}-{i}"),
+                                 ["-output_formats", fmt] + MAKE_RUN_ARGS, 1, force=True,
+                                 timeout=120, check=False, log=log)
+            if r.ok:
+                walls.append(r.wall)
+        out[name] = {"format": fmt, "walls": walls,
+                     "median": float(np.median(walls)) if walls else None}
     return out
 
 
@@ -307,50 +326,42 @@ def plot_errors(nd, data, path):
     plt.close(fig)
 
 
-def plot_mesh(mc, path, solver=None):
-    """Discretisation error vs Nd and vs time; solver = (Nd, sweeps) adds that size's
-    solver-error curves of fast and ssn to the time panel for comparison."""
+def plot_total(tot, path):
+    """Total error of each quantity against whole-process time, one panel each: a point
+    per Nd (labelled), the accuracy levels dotted, and below the continuum value's own
+    error estimate a grey band (errors there are not resolved)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import matplotlib.ticker
-    rows = [r for r in mc["rows"] if r["status"] == "ok" and r["nd"] != mc["finest"]]
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
-    series = (("e_u", "displacement, rel. L2 at common nodes", "o"),
-              ("e_c", "corner (3,1,1) displacement", "s"),
-              ("e_J", "energy", "^"))
-    for ax, xkey, xlabel in ((axes[0], "nd", "Nd"), (axes[1], "time", "solve time, s")):
-        for k, lab, mk in series:
-            ax.loglog([r[xkey] for r in rows], [max(r[k], FLOOR) for r in rows], marker=mk,
-                      label=f"{lab} vs Nd = {mc['finest']}")
-        ex = mc.get("extrapolation") or {}
-        ok = [r for r in mc["rows"] if r["status"] == "ok"]
-        for name, col in (("energy", "C2"), ("corner", "C1")):
-            if ex.get(name):
-                ax.loglog([r[xkey] for r in ok], [max(ex[name]["err"][r["nd"]], FLOOR)
-                                                  for r in ok], ls="--", marker="x", color=col,
-                          alpha=0.6, label=f"{name} vs Richardson limit")
-        if xkey == "time" and solver:
-            nd, sw = solver
-            for key in ("fast", "ssn"):
-                cs = [c for c in sw.get(key, []) if c["status"] == "ok"]
-                if cs:
-                    ax.loglog([c["time"] for c in cs], [max(c["err"]["u"], FLOOR) for c in cs],
-                              color="0.5", ls=":", marker=STYLE[key][1], ms=4,
-                              label=f"solver error (displacement), {key}, Nd = {nd}")
-        ax.set_xlabel(xlabel)
-        if xkey == "nd":
-            ax.set_xticks([r["nd"] for r in mc["rows"] if r["status"] == "ok"])
-            ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_ylabel("relative difference")
+    ok = [r for r in tot["rows"] if r["status"] == "ok" and "err" in r]
+    fig, axes = plt.subplots(1, len(QUANTITIES), figsize=(16, 5.4), sharey=True)
+    for ax, (k, label, _) in zip(axes, QUANTITIES):
+        L = tot["limits"][k]
+        x = [r["wall"] for r in ok]
+        y = [max(r["err"][k], FLOOR) for r in ok]
+        ax.loglog(x, y, "o-", color="k", ms=4, label="default solver, one run per Nd")
+        for r, xi, yi in zip(ok, x, y):
+            ax.annotate(str(r["nd"]), (xi, yi), fontsize=7, textcoords="offset points",
+                        xytext=(3, 4))
+        for lvl, col in zip(LEVELS, ("C2", "C1", "C3")):
+            ax.axhline(lvl, color=col, ls=":", lw=1.0, label=f"{100 * lvl:g} %")
+        ax.axhspan(FLOOR, max(L["relative_error"], FLOOR), color="0.85",
+                   label="below the continuum value's error estimate")
+        ax.set_ylim(max(min(min(y), L["relative_error"], min(LEVELS)) / 3, 1e-7), 1.0)
+        ax.set_xlabel(f"whole-process wall time, s ({tot['np']} rank"
+                      f"{'s' if tot['np'] > 1 else ''})")
+        ax.set_title(f"{label}: continuum value {L['value']:.6g}\n"
+                     f"(± {100 * L['relative_error']:.2g} %"
+                     + (f", observed order {L['order']:.2f}" if L["order"] else
+                        ", not extrapolated") + ")", fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
-    axes[0].set_title("discretisation error vs Nd", fontsize=10)
-    axes[1].set_title("discretisation error vs solve time (-solver_mode fast, tight tol.)",
-                      fontsize=10)
-    axes[0].legend(fontsize=8)
-    axes[1].legend(fontsize=7, loc="lower left")
-    fig.tight_layout()
+    axes[0].set_ylabel("total relative error (solver + discretisation)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9,
+               frameon=False)
+    fig.suptitle("Paper's beam (F = 0.3): total error against whole-process time, the "
+                 "default solver (labels: Nd)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -397,8 +408,9 @@ def reading(nd, data):
     return out
 
 
-def write_md(sizes, mc, args, times, unavailable):
-    L = ["# Error against run time of the solver variants, and mesh convergence", ""]
+def write_md(sizes, tot, mr, args, times, unavailable):
+    L = ["# Error against run time: the default solver, its tolerance, and the total error",
+         ""]
     L += harness.provenance_lines(1, make="report", argv=args.argv)
     L += [f"- Load: other jobs share the cores (1-min load average at the start / end of "
           f"this invocation: {LOAD[0]:.1f} / {os.getloadavg()[0]:.1f}), so times carry noise "
@@ -408,12 +420,16 @@ def write_md(sizes, mc, args, times, unavailable):
           "",
           f"Script wall time of this invocation: {times[0] / 60:.1f} min (cases already on "
           f"disk are reused); from scratch (sum of the wall times of all its cases as they "
-          f"ran, start-up included): {times[1] / 60:.1f} min. The defaults (Nd = 6 and 12, "
-          f"mesh study Nd = 2, 4, 8, 16) are chosen to stay under 12 min from scratch on this "
-          f"machine. Each case is `.venv/bin/python -m contact -nd N "
-          f"-output_dir runs/out/report/<case> <options>`.",
-          "",
-          "## Method",
+          f"ran, start-up included): {times[1] / 60:.1f} min. Each case is "
+          f"`.venv/bin/python -m contact -nd N -output_dir runs/out/report/<case> <options>` "
+          f"(the total-error runs under `mpirun -n {tot['np']}`).",
+          ""]
+    L += total_md(tot) + make_run_md(mr)
+    L += ["", "## The solver's own error against its tolerance", "",
+          "The default solver first, then the paper's loops and their variants, each against "
+          "a reference solution of the same mesh (no discretisation error here).", ""]
+    L += [
+          "### Method",
           "",
           "- Reference per size: the project's own solution at tolerance 1e-12 from two "
           "variants (below); errors are measured against the first. Their mutual "
@@ -438,7 +454,7 @@ def write_md(sizes, mc, args, times, unavailable):
     L.append(f"  - outer tolerances of the APG variants and SSN are max(tol, 1e-12); "
              f"faithful runs only at the smallest size, with a {VARIANTS['faithful']['timeout']}"
              f" s cap per run; a run over its cap stops the tighter tolerances of its variant.")
-    L += ["", "## References", "",
+    L += ["", "### References", "",
           "| Nd | reference | options | solve time, s | iterations (inner/Uzawa/FP) | "
           "max residual |", "|---|---|---|---|---|---|"]
     for nd, d in sizes.items():
@@ -456,7 +472,7 @@ def write_md(sizes, mc, args, times, unavailable):
         a = d["agreement"]
         L.append(f"| {nd} | {e(a and a['u'])} | {e(a and a['p'])} | {e(a and a['J'])} |")
     for nd, d in sizes.items():
-        L += ["", f"## Nd = {nd} ({d['dofs']} dofs)", "",
+        L += ["", f"### Nd = {nd} ({d['dofs']} dofs)", "",
               f"![error vs time](report/error_vs_time_nd{nd}.png)", "",
               "| variant | tol | solve time, s | process CPU, s | inner / Uzawa / FP its | "
               "displacement err | pressure err | energy err | converged |",
@@ -474,8 +490,7 @@ def write_md(sizes, mc, args, times, unavailable):
                                                                           c.get("why", ""))
                     L.append(f"| {k} | {tol} |" + " – |" * 6 + f" skipped: {why} |")
         L += ["", "Reading (computed from the table):", ""] + reading(nd, d)
-    L += mesh_md(mc)
-    L += ["", "## Notes", ""] + notes(sizes, mc)
+    L += ["", "## Notes", ""] + notes(sizes, tot)
     os.makedirs(os.path.dirname(args.record), exist_ok=True)
     with open(args.record, "w") as f:
         f.write("\n".join(L) + "\n")
@@ -485,7 +500,7 @@ def it(c, key):
     return c["summary"]["iterations"][key]
 
 
-def notes(sizes, mc):
+def notes(sizes, tot):
     """Observations drawn from the numbers, and the caveats that go with them."""
     L = ["- Times are `time_s.solve` on a shared 2-core machine with other jobs running: "
          "differences under ~2x between single runs are within the noise (see e.g. a "
@@ -535,59 +550,120 @@ def notes(sizes, mc):
                  "linear solver (MUMPS-preconditioned CG instead of GAMG), which checks the "
                  "linear solves but not the algorithm; the algorithm check is the APG "
                  "reference at the smaller size.")
-    rows = [r for r in mc.get("rows", []) if r["status"] == "ok" and r["nd"] != mc["finest"]]
-    ex = (mc.get("extrapolation") or {}).get("energy")
-    if rows and sizes:
-        r = rows[-1]
-        big = max(sizes)
-        fast = [c for c in sizes[big]["sweeps"].get("fast", []) if c["status"] == "ok"]
-        s = (f"- Discretisation against solver error: Nd = {r['nd']} differs from Nd = "
-             f"{mc['finest']} by {e(r['e_u'])} in displacement and {e(r['e_J'])} in energy")
-        if ex:
-            s += (f"; the Richardson estimate puts the energy error of Nd = {mc['finest']} "
-                  f"itself at {e(ex['err_finest'])}")
-        worst = max(c["err"]["u"] for d in sizes.values() for v in d["sweeps"].values()
-                    for c in v if c["status"] == "ok")
-        s += (f". The largest solver error in the tables ({e(worst)}, displacement) is "
-              f"{'below' if worst < r['e_u'] else 'above'} that mesh difference")
-        if fast:
-            c = fast[0]
-            s += (f"; at Nd = {big}, `-solver_mode fast` at tol {t(c['tol'])} already leaves "
-                  f"a solver error of {e(c['err']['u'])} in {c['time']:.2g} s, so tighter "
-                  "tolerances only pay when comparing solvers, not for the physics")
-        L.append(s + ".")
+    byn = {r["nd"]: r for r in tot.get("rows", []) if r["status"] == "ok" and "err" in r}
+    for nd, d in sizes.items():
+        newton = [c for c in d["sweeps"].get("newton", []) if c["status"] == "ok"
+                  and c["tol"] == 1e-11]
+        if newton and nd in byn:
+            c, r = newton[0], byn[nd]
+            L.append(f"- Solver against discretisation error at Nd = {nd}: the default solver "
+                     f"at its default tolerance (-newton_rtol 1e-11) leaves a displacement "
+                     f"error of {e(c['err']['u'])} and an energy error of {e(c['err']['J'])} "
+                     f"against the reference of the same mesh; the mesh itself is "
+                     f"{e(r['err']['umax'])} off the continuum max |u| and "
+                     f"{e(r['err']['energy'])} off its energy: the total error is the "
+                     f"discretisation error, and a looser -newton_rtol saves little time "
+                     f"(the sweep above).")
     return L
 
 
-def mesh_md(mc):
-    if not mc["rows"]:
+def lvl(x):
+    return f"{100 * x:.2g} %"
+
+
+def md(name):
+    """A quantity's name inside a markdown table (| escaped)."""
+    return name.replace("|", "\\|")
+
+
+def total_md(tot):
+    """The total-error study: what each accuracy costs, the continuum values, the runs."""
+    ok = [r for r in tot["rows"] if r["status"] == "ok" and "err" in r]
+    if not ok:
         return []
-    L = ["", "## Mesh convergence", "",
-         f"`{' '.join(MESH_OPTS)}`; differences to the finest mesh "
-         f"(Nd = {mc['finest']}) at the nodes both meshes share (matched by coordinates), "
-         f"of the displacement at the corner (3, 1, 1), of max |u| and of the energy.", "",
-         "![mesh convergence](report/mesh_convergence.png)", "",
-         "| Nd | dofs | solve time, s | energy J | max abs(u) | u(3,1,1) | common nodes | "
-         "displacement diff | corner diff | max abs(u) diff | energy diff |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in mc["rows"]:
+    nds = ", ".join(str(r["nd"]) for r in tot["rows"])
+    L = ["## What an accuracy costs: total error against whole-process time", "",
+         f"The default solver exactly as a user runs it (`mpirun -n {tot['np']} python -m "
+         f"contact -nd N`: the default `-solver_mode newton` at its default tolerance, "
+         f"coarse-to-fine start, the default output files), Nd = {nds}. Time = the "
+         f"whole process's wall time (start-up, mesh, set-up, solve and output; mpirun "
+         f"included). Error = |q(Nd) - q*| / |q*|, solver and discretisation together, "
+         f"against the continuum value q* of each quantity: max |u| (`max_displacement`), "
+         f"the contact force N (the normal resultant of the contact tractions, "
+         f"`contact_result.normal`) and the energy J.", "",
+         "![total error against whole-process time](report/total_error_vs_time.png)", "",
+         "| quantity | " + " | ".join(f"{lvl(x)}: Nd, time" for x in LEVELS) + " |",
+         "|---|" + "---|" * len(LEVELS)]
+    for k, name, _ in QUANTITIES:
+        cells = []
+        Lk = tot["limits"][k]
+        for x in LEVELS:
+            c = tot["costs"][k][x]
+            if Lk["relative_error"] > x / 3:
+                cells.append(f"not resolved (q* known to ± {lvl(Lk['relative_error'])})")
+            elif c is None:
+                cells.append("not reached")
+            elif c["projected"]:
+                cells.append(f"projected: Nd ≈ {c['nd']:.0f}, ≈ {c['time']:.2g} s")
+            else:
+                cells.append(f"Nd = {c['nd']}, {c['time']:.2g} s")
+        L.append(f"| {md(name)} | " + " | ".join(cells) + " |")
+    L += ["", "Read: the cheapest run from which every finer run stays within the level (a "
+          "coarse mesh whose error crosses zero by chance does not count). Past the finest "
+          "run, a projection (marked): the Nd the observed order gives, and its time grown "
+          "from the finest run as (dofs)^a, a fitted on the finest three runs (at least 1). "
+          "A level is not resolved where the continuum value's own error estimate exceeds a "
+          "third of it.", "",
+          "### Continuum values", "",
+          "| quantity | q* | estimated error of q* | observed order | second estimate | "
+          "how |", "|---|---|---|---|---|---|"]
+    for k, name, _ in QUANTITIES:
+        Lk = tot["limits"][k]
+        sec = Lk["second"]
+        L.append(f"| {md(name)} | {Lk['value']:.7e} | {Lk['error']:.1e} "
+                 f"({lvl(Lk['relative_error'])}) | "
+                 + (f"{Lk['order']:.2f}" if Lk["order"] else "–") + " | "
+                 + (f"{sec['value']:.7e} (order {sec['order']:.2f})" if sec else "–")
+                 + f" | {Lk['method']} |")
+    L += ["", "Each continuum value is extrapolated from the runs below (contact/validation/"
+          "convergence.py): q = q* + C h^p through the finest triple of meshes that double, "
+          "h = 1/Nd; the same from the next-finest doubling triple gives the second estimate, "
+          "and their difference is the error estimate. tests/test_convergence.py checks the "
+          "extrapolation against closed forms.", "",
+          "### The runs", "",
+          "| Nd | dofs | whole process, s | set-up, s | solve, s | Newton steps | max "
+          "residual | peak memory, MiB (all ranks) | max abs(u) | N | J | error max abs(u) | "
+          "error N | error J |", "|---|" + "---|" * 13]
+    for r in tot["rows"]:
         if r["status"] != "ok":
-            L.append(f"| {r['nd']} | – | {r['status']} |" + " – |" * 8)
+            L.append(f"| {r['nd']} | – | {r['status']}: {r.get('error') or ''} |"
+                     + " – |" * 11)
             continue
-        fin = r["nd"] == mc["finest"]
-        c = ", ".join(f"{x:.4e}" for x in r["corner"])
-        L.append(f"| {r['nd']} | {r['dofs']} | {r['time']:.2f} | {r['energy']:.8e} | "
-                 f"{r['umax']:.6e} | ({c}) | {r['common']} | "
-                 + (" (finest) | – | – | – |" if fin else
-                    f"{e(r['e_u'])} | {e(r['e_c'])} | {e(r['e_max'])} | {e(r['e_J'])} |"))
-    ex = mc.get("extrapolation")
-    if ex:
-        for name in ("energy", "corner"):
-            x = ex.get(name)
-            if x:
-                L.append(f"\nRichardson from Nd = {', '.join(map(str, ex['nds']))}: {name} "
-                         f"observed order {x['order']:.2f} in h, limit {x['limit']:.8e}, "
-                         f"estimated relative error of the finest mesh {x['err_finest']:.1e}.")
+        v, er = r["values"], r.get("err", {})
+        L.append(f"| {r['nd']} | {r['dofs']} | {r['wall']:.2f} | {r['setup']:.2f} | "
+                 f"{r['solve']:.2f} | {r['newton']} | {r['residual']:.0e} | {r['rss']:.0f} | "
+                 f"{v['umax']:.6e} | {v['force']:.6f} | {v['energy']:.8e} | "
+                 f"{e(er.get('umax'))} | {e(er.get('force'))} | {e(er.get('energy'))} |")
+    return L
+
+
+def make_run_md(mr):
+    """What `make run` costs, with and without its figures."""
+    if not mr:
+        return []
+    w, wo = mr["with figures"], mr["without figures"]
+    L = ["", "## What `make run` costs", "",
+         f"`make run` solves `python -m contact {' '.join(MAKE_RUN_ARGS)}` (the Makefile's "
+         f"ARGS) and writes the figures (`-output_formats h5,xdmf,json,png`). Whole process "
+         f"on 1 rank, wall time, {len(w['walls'])} fresh runs each:", "",
+         "| output | median, s | runs, s |", "|---|---|---|"]
+    for name, x in mr.items():
+        med = "–" if x["median"] is None else f"{x['median']:.2f}"
+        L.append(f"| {name} (`{x['format']}`) | {med} | "
+                 + ", ".join(f"{a:.2f}" for a in x["walls"]) + " |")
+    if w["median"] is not None and wo["median"] is not None:
+        L += ["", f"The figures (matplotlib's import and four PNGs) add "
+              f"{w['median'] - wo['median']:.2f} s."]
     return L
 
 
@@ -621,13 +697,20 @@ def main(argv=None):
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--nd", type=int, nargs="+", default=None,
                     help="sizes of the error-vs-time study (default 6 12; --quick: 2 3)")
-    ap.add_argument("--mesh-nd", type=int, nargs="*", default=None,
-                    help="sizes of the mesh study (default 2 4 8 16; --quick: 1 2 4; none: "
-                         "skip it)")
+    ap.add_argument("--total-nd", type=int, nargs="*", default=None,
+                    help="sizes of the total-error study (default "
+                         f"{' '.join(map(str, TOTAL_NDS))}; --quick: 2 3 4 6 8; none: skip it)")
+    ap.add_argument("--total-np", type=int, default=2,
+                    help="MPI ranks of the total-error runs (default 2)")
+    ap.add_argument("--total-timeout", type=int, default=900,
+                    help="cap of a total-error run, s")
+    ap.add_argument("--no-make-run", action="store_true",
+                    help="skip the timing of make run (3 + 3 fresh runs at Nd = 10)")
     ap.add_argument("--quick", action="store_true", help="smoke run: tiny sizes, 2 tolerances")
     ap.add_argument("--smoke", action="store_true",
-                    help="smallest run (tests): Nd = 2, one tolerance per variant, mesh study "
-                         "Nd = 1, 2; needs --out-dir, records there")
+                    help="smallest run (tests): Nd = 2, one tolerance per variant, total-error "
+                         "study Nd = 2, 3, 4, 6, 8 on 1 rank, make run once; needs --out-dir, "
+                         "records there")
     ap.add_argument("--out-dir", default=None,
                     help="directory of the cases (default runs/out/report)")
     ap.add_argument("--record", default=None,
@@ -635,7 +718,6 @@ def main(argv=None):
                          "plots and data.json go to report/ beside it")
     ap.add_argument("--force", action="store_true", help="re-run cases that exist")
     ap.add_argument("--ref-timeout", type=int, default=300, help="cap of a reference run, s")
-    ap.add_argument("--mesh-timeout", type=int, default=200, help="cap of a mesh run, s")
     ap.add_argument("--apg-ref-max-nd", type=int, default=8,
                     help="largest Nd whose second reference is APG + restart (above: SSN "
                          "with MUMPS)")
@@ -648,8 +730,10 @@ def main(argv=None):
                                   os.path.join(ROOT, "runs", "results", "report.md"))
     results = os.path.join(os.path.dirname(args.record), "report")
     nds = args.nd or ([2] if args.smoke else [2, 3] if args.quick else [6, 12])
-    mesh_nds = args.mesh_nd if args.mesh_nd is not None else (
-        [1, 2] if args.smoke else [1, 2, 4] if args.quick else [2, 4, 8, 16])
+    total_nds = args.total_nd if args.total_nd is not None else (
+        [2, 3, 4, 6, 8] if args.smoke or args.quick else TOTAL_NDS)
+    if args.smoke:
+        args.total_np = 1
     t0 = time.perf_counter()
     os.makedirs(args.out_dir, exist_ok=True)
     os.makedirs(results, exist_ok=True)
@@ -657,6 +741,11 @@ def main(argv=None):
     def log(msg, end="\n", cont=False):
         stamp = "" if cont else f"[{time.perf_counter() - t0:6.0f} s] "
         print(stamp + msg, end=end, flush=True)
+
+    mr = None
+    if not args.no_make_run:                      # first, before the machine warms up
+        log("== make run")
+        mr = make_run_cost(args, log, repeat=1 if args.smoke else 3)
 
     unavailable = {}
     probe_time = time.perf_counter()
@@ -688,28 +777,27 @@ def main(argv=None):
         plot_errors(nd, sizes[nd], os.path.join(results, f"error_vs_time_nd{nd}.png"))
         log(f"wrote {os.path.join(results, f'error_vs_time_nd{nd}.png')}")
 
-    mc = {"rows": [], "finest": None}
-    if mesh_nds:
-        log("== mesh convergence")
-        mc = mesh_convergence(sorted(mesh_nds), args, log)
-        if len([r for r in mc["rows"] if r["status"] == "ok"]) >= 2:
-            big = max(sizes) if sizes else None
-            plot_mesh(mc, os.path.join(results, "mesh_convergence.png"),
-                      (big, sizes[big]["sweeps"]) if big else None)
-            log(f"wrote {os.path.join(results, 'mesh_convergence.png')}")
+    tot = {"rows": [], "limits": {}, "costs": {}, "np": args.total_np}
+    if total_nds:
+        log(f"== total error, Nd = {' '.join(map(str, total_nds))}")
+        tot = total_study(sorted(total_nds), args, log)
+        if tot["limits"]:
+            plot_total(tot, os.path.join(results, "total_error_vs_time.png"))
+            log(f"wrote {os.path.join(results, 'total_error_vs_time.png')}")
 
     elapsed = time.perf_counter() - t0
     cases = [c for d in sizes.values() for c in d["refs"] + [x for v in d["sweeps"].values()
-                                                            for x in v]] + mc.get("runs", [])
-    scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time
-    write_md(sizes, mc, args, (elapsed, scratch), unavailable)
-    save_data(sizes, mc, elapsed, os.path.join(results, "data.json"))
+                                                            for x in v]] + tot["rows"]
+    scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time + sum(
+        sum(x["walls"]) for x in (mr or {}).values())
+    write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable)
+    save_data(sizes, tot, mr, elapsed, os.path.join(results, "data.json"))
     log(f"wrote {args.record} (this run {elapsed / 60:.1f} min; from scratch "
         f"{scratch / 60:.1f} min)")
     return 0
 
 
-def save_data(sizes, mc, elapsed, path):
+def save_data(sizes, tot, mr, elapsed, path):
     """The numbers behind the report (no arrays), for later comparison."""
     def strip(c):
         keep = ("name", "status", "tol", "time", "err", "opts", "why", "error", "label")
@@ -719,8 +807,8 @@ def save_data(sizes, mc, elapsed, path):
             d["energy"] = c["summary"]["energy"]
             d["converged"] = c["summary"]["converged"]
         return d
-    mc = {k: v for k, v in mc.items() if k != "runs"}
-    data = {"date": harness.provenance()["date"], "elapsed_s": elapsed, "mesh": mc,
+    data = {"date": harness.provenance()["date"], "elapsed_s": elapsed, "total": tot,
+            "make_run": mr,
             "sizes": {nd: {"dofs": d["dofs"], "agreement": d["agreement"],
                            "refs": [strip(r) for r in d["refs"]],
                            "sweeps": {k: [strip(c) for c in v] for k, v in d["sweeps"].items()}}

@@ -145,9 +145,20 @@ def test_report(tmp_path):
         row, = table_rows(md, variant)
         assert row[-1] == "True" and float(row[5]) < 1e-3, row       # converged, error
     assert float(table_rows(md, "fast")[0][5]) < 1e-5
-    mesh = [r for r in table_rows(md, 1) if len(r) == 11]
-    assert mesh and int(mesh[0][1]) == n_p(1)
-    for f in ("error_vs_time_nd2.png", "mesh_convergence.png", "data.json"):
+    # the total-error study: one run per Nd (the paper's unknowns), the energy converging
+    # from above to a continuum value below the finest run, its cost table filled
+    runs = {nd: [r for r in table_rows(md, nd) if len(r) == 14] for nd in (2, 3, 4, 6, 8)}
+    assert all(len(r) == 1 for r in runs.values()), runs
+    assert int(runs[2][0][1]) == n_p(2) and int(runs[8][0][1]) == n_p(8)
+    J = [float(runs[nd][0][10]) for nd in (2, 3, 4, 6, 8)]
+    assert all(a > b for a, b in zip(J, J[1:]))                 # J falls with refinement
+    cont, = [r for r in table_rows(md, "energy J") if len(r) == 6]
+    assert float(cont[1]) < J[-1] and float(cont[1]) > J[-1] - (J[0] - J[-1])
+    cost, = [r for r in table_rows(md, "energy J") if len(r) == 4]
+    assert cost[1].startswith("Nd = ")                          # 10 %: reached
+    row, = table_rows(md, "with figures (`h5,xdmf,json,png`)")
+    assert float(row[1]) > 0
+    for f in ("error_vs_time_nd2.png", "total_error_vs_time.png", "data.json"):
         assert os.path.getsize(tmp_path / "report" / f) > 0
     data = json.loads(read(tmp_path / "report" / "data.json"))
     assert data["sizes"]["2"]["agreement"]["u"] < 1e-8
