@@ -13,12 +13,26 @@ vectors, and the solution lives in the problem (problem.py).
 import numpy as np
 from mpi4py import MPI
 
-from . import fem, mesh, multigrid
+from . import fem, mesh, multigrid, options
 from .contactset import ContactSet
 from .frame import ContactFrame, basis
 from .scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)
+#: -element auto: B-bar from this Poisson ratio on (outside -solver_mode faithful)
+AUTO_BBAR_NU = 0.4
+
+
+def element_of(scene):
+    """The element of a run (fem.ELEMENTS): -element (or the scene's mesh.element); auto:
+    q1 in the paper's faithful mode, else bbar where nu >= AUTO_BBAR_NU, else q1."""
+    el = options.get("element", scene)
+    if el == "auto":
+        faithful = options.get("solver_mode", scene) == "faithful"
+        el = "q1" if faithful or scene["material"]["poisson"] < AUTO_BBAR_NU else "bbar"
+    if el not in fem.ELEMENTS:
+        raise SceneError(f"-element must be auto, {', '.join(fem.ELEMENTS)}, got {el!r}")
+    return el
 
 
 class Discretisation:
@@ -77,8 +91,9 @@ class Discretisation:
         self._parts()
         self._contact_set()
         mat = sc["material"]
+        self.element = element_of(sc)
         self.A = fem.assemble_stiffness(dm, conn, self.coords, mat["young"], mat["poisson"],
-                                        frame=self.frame)
+                                        frame=self.frame, element=self.element)
         self._loads()
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
         self.n_dofs = self.A.getSize()[0]

@@ -1,9 +1,23 @@
-"""Q1 (trilinear hexahedron) linear elasticity: element matrices, assembly, loads.
+"""Trilinear hexahedra for linear elasticity: element matrices, assembly, loads.
 
 a(u, v) = int_Omega sigma(u) : eps(v) dx, sigma = lambda tr(eps) I + 2 mu eps,
 b(v)    = int_Omega f . v dx + int_Gamma_n p . v ds.
 Element matrices use 2x2x2 Gauss points and are computed for all cells at once (NumPy
 einsum over chunks of cells); face integrals use 2x2 Gauss points on the bilinear face.
+
+Elements (-element, ELEMENTS):
+  q1    the paper's trilinear hexahedron, full integration. Locks volumetrically as
+        nu -> 0.5: 24 dofs against 8 incompressibility constraints per cell.
+  bbar  the same nodes and shape functions with the volumetric strain replaced by its mean
+        over the cell (B-bar, Hughes 1980):
+          a_e(u, v) = int_e 2 mu dev eps(u) : dev eps(v) dx + kappa |e| div_e(u) div_e(v),
+          div_e(u) = (1/|e|) int_e div u dx,   kappa = lambda + 2 mu / 3,
+        which is the Q1-P0 mixed u-p element (a constant pressure per cell,
+        p = kappa div_e u) with the pressure condensed: one constraint per cell, no
+        volumetric locking. A linear displacement has a constant divergence, so the patch
+        test holds as for q1; the cell-mean stress is the same formula of the cell-mean
+        strain (stress.py needs nothing else). Contact weights (face integrals) are those
+        of q1: positive.
 """
 import numpy as np
 from mpi4py import MPI
@@ -16,6 +30,11 @@ _G = 1.0 / np.sqrt(3.0)
 _GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
 _GP2 = np.array([[a, b] for a in (-_G, _G) for b in (-_G, _G)])
 _QUAD_REF = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+
+#: -element values and what they are (module docstring)
+ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
+            "bbar": "trilinear hexahedron with the cell-mean volumetric strain (B-bar = Q1-P0 "
+                    "u-p condensed): no volumetric locking as nu -> 0.5"}
 
 #: cells per chunk when computing element matrices (bounds the temporaries: the element
 #: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
@@ -61,8 +80,8 @@ def _geometry(X):
     return dNdx, det
 
 
-def element_stiffness(X, lam, mu):
-    """Element stiffness matrices K_e (c, 24, 24), dof order 3 a + i.
+def element_stiffness(X, lam, mu, element="q1"):
+    """Element stiffness matrices K_e (c, 24, 24) of `element` (ELEMENTS), dof order 3 a + i.
 
     K_e depends on the cell's shape only (not on where it lies): cells whose vertices,
     taken relative to their first vertex, agree to 1e-12 of the largest cell extent share
@@ -75,13 +94,21 @@ def element_stiffness(X, lam, mu):
             key = np.round(rel.reshape(X.shape[0], -1) * (1e12 / scale))
             _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
             if first.size < X.shape[0] // 2:
-                return _element_stiffness(rel[first], lam, mu)[inverse.ravel()]
-    return _element_stiffness(X, lam, mu)
+                return _element_stiffness(rel[first], lam, mu, element)[inverse.ravel()]
+    return _element_stiffness(X, lam, mu, element)
 
 
-def _element_stiffness(X, lam, mu):
+def _element_stiffness(X, lam, mu, element):
+    if element not in ELEMENTS:
+        raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
     dNdx, wdet = _geometry(X)
-    K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+    if element == "q1":
+        K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+    else:                     # bbar: -2 mu / 3 (div)(div) pointwise + kappa |e| div_e div_e
+        K = (-2.0 * mu / 3.0) * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+        g = np.einsum("cgai,cg->cai", dNdx, wdet)                   # int_e dN_a/dx_i
+        kappa = lam + 2.0 * mu / 3.0
+        K += np.einsum("cai,cbj,c->caibj", g, g, kappa / wdet.sum(axis=1))
     K += mu * np.einsum("cgaj,cgbi,cg->caibj", dNdx, dNdx, wdet)
     lap = mu * np.einsum("cgak,cgbk,cg->cab", dNdx, dNdx, wdet)
     K[:, :, 0, :, 0] += lap
@@ -119,9 +146,10 @@ def nodal_face_weights(faces, coords):
     return w
 
 
-def assemble_stiffness(dm, conn, coords, young, poisson, frame=None):
-    """Global stiffness matrix A (AIJ from the DM, block size 3), unconstrained; in the
-    basis of a contact frame (contact/frame.py: T^T A T) when one is given."""
+def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1"):
+    """Global stiffness matrix A (AIJ from the DM, block size 3) of `element` (ELEMENTS),
+    unconstrained; in the basis of a contact frame (contact/frame.py: T^T A T) when one is
+    given."""
     lam, mu = lame(young, poisson)
     A = dm.createMat()           # createMatrix is gone in petsc4py >= 3.20
     if A.getBlockSize() != 3:
@@ -130,7 +158,7 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None):
     idx_type = PETSc.IntType
     for s in range(0, conn.shape[0], CHUNK):
         c = conn[s:s + CHUNK]
-        Ke = element_stiffness(coords[c], lam, mu)
+        Ke = element_stiffness(coords[c], lam, mu, element)
         if frame is not None:
             Ke = frame.element_matrices(Ke, c)
         A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),

@@ -31,6 +31,7 @@ def summary(problem, time_total):
         "solver_mode": problem.solver_mode,
         "partitioner": problem.partitioner,
         "mesh": problem.hierarchy.describe(),        # hierarchy.py: how it was built
+        "element": problem.element,                  # fem.ELEMENTS
         "mesh_levels": [lv.nd for lv in problem.hierarchy.levels],
         "dofs": problem.n_dofs,
         "nonzeros": int(problem.A.getInfo()["nz_used"]),
@@ -94,7 +95,7 @@ def print_summary(comm, s, outdir=None):
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
              f"{s['converged']}",
-             f"loading: {s['loading']}", f"mesh: {s['mesh']}"]
+             f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}"]
     if s["skipped"]:
         lines.append("skipped: " + "; ".join(s["skipped"]))
     if outdir:

@@ -15,6 +15,7 @@ import yaml
 from petsc4py import PETSc
 
 from . import options
+from .fem import ELEMENTS
 
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
@@ -29,7 +30,8 @@ MESH_TYPES = ("box", "file", "gmsh")
 SCHEMA = {
     None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
            "solver", "loading"),
-    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate"),
+    "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate",
+             "element"),
     "rotate": ("axis", "degrees", "origin"),
     "material": ("young", "poisson"),
     "contact": ("friction", "foundation", "gap"),
@@ -188,6 +190,9 @@ def validate(scene):
         _box(mesh)
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
+    el = mesh.get("element", "auto")
+    if el != "auto" and el not in ELEMENTS:
+        raise SceneError(f"element must be auto, {', '.join(ELEMENTS)}, got {el!r}")
     _material(scene["material"])
     _rest(scene)
     return scene

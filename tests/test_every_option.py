@@ -32,6 +32,7 @@ CASES = {
     "friction": ("where(x < 1.5, 0.3, 0.1)", {}),
     "young": ("1e5", {}),
     "poisson": ("0.25", {}),
+    "element": ("bbar", {}),
     "load_steps": ("3", {}),
     "output_dir": (None, {}),                        # the test's temporary directory
     "output_formats": ("json,h5", {}),

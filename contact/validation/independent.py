@@ -10,7 +10,10 @@ solver next to it):
   nodes on a structured grid, node (i, j, k) has number ``i + (nx+1) (j + (ny+1) k)``
   (x fastest, then y, then z: the same as sorting by (z, y, x)); dof ``3 a + c``.
 * Q1 (trilinear, 8-node) hexahedra, isoparametric, 2x2x2 Gauss quadrature, isotropic
-  Hooke's law in Voigt form (engineering shear strains), vectorised over the cells.
+  Hooke's law in Voigt form (engineering shear strains), vectorised over the cells;
+  ``mesh.element: bbar`` replaces B by Hughes' B-bar (the volumetric rows' gradients by
+  their cell means, K = sum B-bar^T D B-bar), the textbook form, not the package's
+  split of the energy into deviatoric and volumetric parts.
   Local node ``q = qx + 2 qy + 4 qz`` sits at the reference corner
   ``(2qx-1, 2qy-1, 2qz-1)``; N_q = 1/8 (1 + xi_q xi)(1 + eta_q eta)(1 + zeta_q zeta).
 * Face integrals (consistent tractions, contact weights): bilinear faces, 2x2 Gauss,
@@ -146,10 +149,27 @@ def _cell_dofs(cells):
     return (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], 24)
 
 
-def stiffness(xyz, cells, young, poisson):
-    """Global stiffness K (3n, 3n) CSR, no boundary conditions."""
+def bbar_strain_matrix(dNdx, dv):
+    """Hughes' B-bar (..., 6, 24): B + 1/3 m (bbar - b)^T, m = (1, 1, 1, 0, 0, 0), b the
+    gradients dN_a/dx_i at the point, bbar their cell means (weights dv): the strain with
+    its trace replaced by the cell-mean divergence."""
+    mean = np.einsum("cgqj,cg->cqj", dNdx, dv) / dv.sum(axis=1)[:, None, None]
+    diff = (mean[:, None] - dNdx).reshape(dNdx.shape[:2] + (24,))      # (nc, g, 24)
+    B = strain_matrix(dNdx)
+    B[..., :3, :] += diff[:, :, None, :] / 3.0
+    return B
+
+
+def stiffness(xyz, cells, young, poisson, element="q1"):
+    """Global stiffness K (3n, 3n) CSR, no boundary conditions; element q1 (B at the
+    Gauss points) or bbar (bbar_strain_matrix)."""
     dNdx, dv, _ = _geometry(xyz, cells)
-    B = strain_matrix(dNdx)                                     # (nc, g, 6, 24)
+    if element == "q1":
+        B = strain_matrix(dNdx)                                 # (nc, g, 6, 24)
+    elif element == "bbar":
+        B = bbar_strain_matrix(dNdx, dv)
+    else:
+        raise NotImplementedError(f"independent reference: element {element!r}")
     D = hooke(young, poisson)
     Ke = np.einsum("cgki,kl,cglj,cg->cij", B, D, B, dv)         # (nc, 24, 24)
     dofs = _cell_dofs(cells)
@@ -246,7 +266,11 @@ def discretise(scene):
     xyz, cells = grid(lower, upper, ncell)
     n = xyz.shape[0]
     tol = 1e-10 * float(np.max(upper - lower))
-    K = stiffness(xyz, cells, float(mat["young"]), float(mat["poisson"]))
+    element = scene["mesh"].get("element", "q1")
+    if element == "auto":
+        raise NotImplementedError("independent reference: name the element (mesh.element "
+                                  "q1 or bbar), not auto")
+    K = stiffness(xyz, cells, float(mat["young"]), float(mat["poisson"]), element)
     f = np.zeros((n, 3))
     bf = np.asarray(scene.get("body_force", [0.0, 0.0, 0.0]), dtype=float)
     if np.any(bf):

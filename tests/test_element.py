@@ -1,0 +1,159 @@
+"""The elements (-element, contact/fem.py ELEMENTS): q1, the paper's, and bbar (B-bar:
+the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
+
+* the package's element matrices against the independent reference's (contact/validation/
+  independent.py: Hughes' B-bar in Voigt form, K = sum B-bar^T D B-bar; the package splits
+  the energy into a deviatoric and a volumetric part instead), cell by cell on distorted
+  cells, at nu = 0.3 and 0.4999;
+* the reference's B-bar on its own: symmetric, exactly the six rigid motions in its null
+  space, and the patch test (a linear field is exact) on distorted cells at nu = 0.4999;
+* the package against the reference solving whole contact scenes with bbar (the beam
+  frictionless and at F = 0.3, the block with a varying F), nu = 0.3 and 0.4999, on any
+  number of ranks;
+* a closed form at nu = 0.4999: the frictionless block pressed on the foundation, uniaxial
+  stress, u = p/E (nu x, nu y, -z) and pressure p at every contact node;
+* what -element auto picks, and a bad -element refused in one line.
+"""
+import numpy as np
+import pytest
+from conftest import block_scene, paper_scene, solve
+from test_independent_reference import TOL, _compare, _distorted, _reference, _rel
+
+from contact import fem, options
+from contact.discretisation import element_of
+from contact.scene import SceneError
+from contact.validation import independent as ind
+
+
+#: the reference's local corner q = qx + 2 qy + 4 qz at (2 qx - 1, 2 qy - 1, 2 qz - 1), in
+#: the package's corner order (mesh.HEX_REF)
+PERM = [int(((c + 1) / 2) @ [1, 2, 4]) for c in fem.HEX_REF]
+
+
+@pytest.mark.parametrize("nu", [0.3, 0.4999])
+@pytest.mark.parametrize("element", ["q1", "bbar"])
+def test_element_matrices_match_the_reference(element, nu):
+    xyz, cells, _, _ = _distorted(nd=2, seed=3)
+    E = 2.0e3
+    lam, mu = fem.lame(E, nu)
+    K = ind.stiffness(xyz, cells, E, nu, element).toarray()
+    ours = np.zeros_like(K)
+    cells = cells[:, PERM]                              # the package's corner order
+    Ke = fem.element_stiffness(xyz[cells], lam, mu, element)
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], 24)
+    for c in range(cells.shape[0]):                     # a plain assembly, for the test
+        ours[np.ix_(dofs[c], dofs[c])] += Ke[c]
+    assert _rel(ours, K) < 1e-12
+
+
+def test_bbar_is_not_q1():
+    """At nu = 0.3 the two differ (else the comparisons above would not tell them apart)."""
+    xyz, cells, _, _ = _distorted(nd=2)
+    a = ind.stiffness(xyz, cells, 1.0, 0.3, "q1").toarray()
+    b = ind.stiffness(xyz, cells, 1.0, 0.3, "bbar").toarray()
+    assert _rel(a, b) > 1e-2
+
+
+@pytest.mark.parametrize("distorted", [False, True])
+def test_reference_bbar_null_space_is_the_rigid_motions(distorted):
+    xyz, cells, lower, upper = _distorted()
+    if not distorted:
+        xyz = ind.grid(lower, upper, [6, 3, 3])[0]
+    K = ind.stiffness(xyz, cells, 1.0, 0.4999, "bbar")
+    kmax = abs(K).max()
+    assert abs(K - K.T).max() <= 1e-13 * kmax
+    assert np.abs(K @ ind.rigid_modes(xyz)).max() <= 1e-11 * kmax * 3.0
+    ev = np.linalg.eigvalsh(K.toarray())
+    assert np.all(np.abs(ev[:6]) <= 1e-10 * ev[-1]) and ev[6] > 1e-9 * ev[-1]
+
+
+@pytest.mark.parametrize("nu", [0.3, 0.4999])
+def test_bbar_patch_test_on_distorted_cells(nu):
+    """K u = the consistent boundary tractions sigma n of a linear u, for both codes'
+    matrices (zero force at the interior nodes)."""
+    xyz, cells, lower, upper = _distorted()
+    E = 1.0e3
+    G = np.random.default_rng(1).normal(size=(3, 3))
+    u = (xyz @ G.T).ravel()
+    eps = 0.5 * (G + G.T)
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    sigma = lam * np.trace(eps) * np.eye(3) + 2 * mu * eps
+    f = np.zeros((xyz.shape[0], 3))
+    for axis in range(3):
+        for value, sign in ((lower[axis], -1.0), (upper[axis], 1.0)):
+            faces = ind.plane_faces(xyz, cells, axis, value, 1e-10)
+            f += ind.face_integral(xyz, faces, xyz.shape[0])[:, None] * \
+                (sigma @ (sign * np.eye(3)[axis]))
+    K = ind.stiffness(xyz, cells, E, nu, "bbar")
+    assert _rel(K @ u, f.ravel()) < 1e-10
+    cells = cells[:, PERM]
+    Ke = fem.element_stiffness(xyz[cells], *fem.lame(E, nu), "bbar")
+    ue = u.reshape(-1, 3)[cells].reshape(cells.shape[0], 24)
+    Ku = np.zeros_like(xyz)
+    np.add.at(Ku, cells.ravel(), np.einsum("cij,cj->ci", Ke, ue).reshape(-1, 3))
+    assert _rel(Ku.ravel(), f.ravel()) < 1e-10
+
+
+#: solver settings tight enough that the comparison sees the discretisation only
+TIGHT_NEWTON = dict(mode="newton")
+
+
+@pytest.mark.parametrize("nu", [0.3, 0.4999])
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_paper_beam_bbar_against_reference(friction, nu):
+    sc = paper_scene(nd=2, **TIGHT_NEWTON)
+    sc["mesh"]["element"] = "bbar"
+    sc["material"]["poisson"] = nu
+    sc["contact"]["friction"] = friction
+    du, dp, dJ = _compare(sc, _reference(sc))
+    assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
+
+
+def test_block_bbar_varying_friction_against_reference():
+    """nu = 0.49: at 0.4999 the default solver's inexact GMRES + multigrid solves do not
+    resolve the Newton steps on this block (the linear solves of issue 23's target 3)."""
+    from test_independent_reference import _block
+    sc = _block("0.1 + 0.5 * x * (1 - 0.5 * y)", **TIGHT_NEWTON)
+    sc["mesh"]["element"] = "bbar"
+    sc["material"]["poisson"] = 0.49
+    du, dp, dJ = _compare(sc, _reference(sc))
+    assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
+
+
+@pytest.mark.parametrize("element", ["q1", "bbar"])
+def test_pressed_block_closed_form_nearly_incompressible(element):
+    """Frictionless block on the foundation pressed by p, rollers x = 0 and y = 0, nu =
+    0.4999: uniaxial stress, u = p/E (nu x, nu y, -z), pressure p at every contact node."""
+    E, nu, p = 1.0e3, 0.4999, 2.0
+    parts = {"sx": {"plane": ["x", 0.0], "type": "symmetry"},
+             "sy": {"plane": ["y", 0.0], "type": "symmetry"},
+             "contact": {"plane": ["z", 0.0], "type": "contact"},
+             "top": {"plane": ["z", 1.0], "type": "traction", "traction": [0.0, 0.0, -p]}}
+    sc = block_scene(parts, nd=3, young=E, poisson=nu, size=(1.5, 1.0, 1.0), **TIGHT_NEWTON)
+    sc["mesh"]["element"] = element
+    pr = solve(sc)
+    from conftest import gather
+    X, U = gather(pr)[:2]
+    x, y, z = X.T
+    assert _rel(U, p / E * np.c_[nu * x, nu * y, -z]) < 1e-8
+    L = pr.cs.local_array(pr.l)
+    assert np.all(np.abs(L - p) <= 1e-8 * p)
+
+
+@pytest.mark.parametrize("mode,nu,given,want", [
+    ("newton", 0.3, None, "q1"), ("newton", 0.4999, None, "bbar"),
+    ("faithful", 0.4999, None, "q1"), ("newton", 0.3, "bbar", "bbar"),
+    ("faithful", 0.4999, "bbar", "bbar"), ("newton", 0.4999, "q1", "q1")])
+def test_auto_picks(mode, nu, given, want):
+    sc = paper_scene(nd=1, mode=mode)
+    sc["material"]["poisson"] = nu
+    with options.inserted({"element": given} if given else {}):
+        assert element_of(sc) == want
+
+
+def test_bad_element_is_refused():
+    sc = paper_scene(nd=1)
+    sc["mesh"]["element"] = "q2"
+    from contact import scene as scenes
+    with pytest.raises(SceneError, match="element must be auto, q1, bbar, got 'q2'"):
+        scenes.validate(sc)
