@@ -59,7 +59,9 @@ INSERT = PETSc.InsertMode.INSERT_VALUES
 class CoulombNewton(Loop):
     """Alart-Curnier semismooth Newton on the whole contact problem; options prefix
     ``-newton_``. A, b: the elasticity matrix (clamped rows eliminated, diagonal
-    `diag_scale`) and load; cs: the contact set; gap: a contact Vec (a load increment's)."""
+    `diag_scale`) and load; cs: the contact set; gap: a contact Vec (a load increment's);
+    rho_diag: the diagonal rho = A_nn / w is read from (default A's; discretisation.py's
+    contact_diagonal for a nearly incompressible B-bar body)."""
 
     prefix = "newton_"
     title = "Newton"
@@ -69,7 +71,8 @@ class CoulombNewton(Loop):
     hint = ("raise -newton_max_it, or try the paper's loops: -solver_mode faithful "
             "(or fast)")
 
-    def __init__(self, A, b, cs, clamped, diag_scale, mg=None, close_first=False):
+    def __init__(self, A, b, cs, clamped, diag_scale, mg=None, close_first=False,
+                 rho_diag=None):
         super().__init__(A.getComm())
         self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
         self.close_first = bool(close_first)   # the glued first step closes every node
@@ -97,10 +100,11 @@ class CoulombNewton(Loop):
         self.c = [cs.vec() for _ in range(3)]
         self.w = cs.local_array(cs.w)
         self.F = cs.local_array(cs.F)
-        d = A.getDiagonal()
+        d = A.getDiagonal() if rho_diag is None else rho_diag   # rho = A_nn / w
         cs.gather(d, self.c[2], 2)
         self.rho = cs.local_array(self.c[2]) / np.where(self.w > 0, self.w, 1.0)
-        d.destroy()
+        if rho_diag is None:
+            d.destroy()
         self._contact_rows()
         self.ksp = PETSc.KSP().create(comm=self.comm)
         self.ksp.setOptionsPrefix(self.prefix)

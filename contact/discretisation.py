@@ -21,6 +21,9 @@ from .scene import AXES, SceneError, foundation_normal
 DEFAULT_RAMP = (0.0, 1.0)
 #: -element auto: B-bar from this Poisson ratio on (outside -solver_mode faithful)
 AUTO_BBAR_NU = 0.4
+#: the Newton iteration's contact stiffness rho = A_nn / w of a bbar body: A_nn of a
+#: material with lambda at most this times mu (that of nu = 0.3)
+RHO_LAMBDA_CAP = 1.5
 
 
 def element_of(scene):
@@ -95,11 +98,28 @@ class Discretisation:
         self.A = fem.assemble_stiffness(dm, conn, self.coords, mat["young"], mat["poisson"],
                                         frame=self.frame, element=self.element)
         self._loads()
+        self.contact_diagonal = self._contact_diagonal()
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
         self.n_dofs = self.A.getSize()[0]
         #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
         #: finest interpolation is built once, for every load increment's solve
         self.multigrid = multigrid.for_problem(self)
+
+    def _contact_diagonal(self):
+        """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
+        from (coulomb.py), or None for A's own. With bbar and lambda > RHO_LAMBDA_CAP mu
+        (nu > 0.3): that of lambda = RHO_LAMBDA_CAP mu. A's diagonal there is the
+        volumetric stiffness kappa ~ lambda, which the cell-mean constraint of B-bar does
+        not oppose to a node's motion when its neighbours follow: the node's stiffness
+        stays that of shear, mu. With rho ~ lambda the slip test |l_t - rho x_t| sees
+        only rho x_t and the iteration cycles (a block at nu = 0.4999 and F = 0.3:
+        DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap)."""
+        mat = self.scene["material"]
+        lam, mu = fem.lame(mat["young"], mat["poisson"])
+        if self.element != "bbar" or lam <= RHO_LAMBDA_CAP * mu:
+            return None
+        return fem.assemble_diagonal(self.dm, self.conn, self.coords, RHO_LAMBDA_CAP * mu,
+                                     mu, self.frame, self.element)
 
     def _parts(self):
         """Boundary parts (faces), the dirichlet and symmetry constraints, clamped rows."""

@@ -79,7 +79,8 @@ class NewtonLoops:
     def __init__(self, disc, b, gap, contact_held=False):
         self.cs = disc.cs
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
-                                   disc.multigrid, close_first=contact_held)
+                                   disc.multigrid, close_first=contact_held,
+                                   rho_diag=disc.contact_diagonal)
         self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap)
 

@@ -167,6 +167,20 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     return A
 
 
+def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
+    """The diagonal (a global Vec) of the stiffness of `element` with Lame constants
+    (lam, mu), in the contact frame's basis when one is given: the element matrices'
+    diagonals summed, no matrix kept."""
+    diag = np.zeros((coords.shape[0], 3))
+    for s in range(0, conn.shape[0], CHUNK):
+        c = conn[s:s + CHUNK]
+        Ke = element_stiffness(coords[c], lam, mu, element)
+        if frame is not None:
+            Ke = frame.element_matrices(Ke, c)
+        np.add.at(diag, c.ravel(), np.diagonal(Ke, axis1=1, axis2=2).reshape(-1, 3))
+    return local_to_global(dm, diag.ravel())
+
+
 def local_to_global(dm, local_array, gvec=None):
     """Sum a local (owned + ghost) dof array into a global Vec (ADD_VALUES)."""
     lvec = dm.getLocalVec()

@@ -25,7 +25,7 @@ from .hierarchy import MeshHierarchy
 #: the discretisation's fields, read through the problem (tests, output, transfer)
 DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "coords", "parts", "physical_names",
                "clamped", "clamped_xyz", "coordinates", "has_contact_part", "normal", "cs",
-               "frame", "A", "b", "u_D", "load_groups", "diag_scale", "nullspace", "n_dofs",
+               "frame", "A", "b", "u_D", "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
                "to_xyz", "xyz_rows")
 
 

@@ -109,15 +109,45 @@ def test_paper_beam_bbar_against_reference(friction, nu):
     assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
 
 
-def test_block_bbar_varying_friction_against_reference():
-    """nu = 0.49: at 0.4999 the default solver's inexact GMRES + multigrid solves do not
-    resolve the Newton steps on this block (the linear solves of issue 23's target 3)."""
+#: exact Newton steps: the iteration itself, without the Krylov solves' inexactness
+LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu"}
+F_VARYING = "0.1 + 0.5 * x * (1 - 0.5 * y)"
+
+
+def _bbar_block(friction, nu):
     from test_independent_reference import _block
-    sc = _block("0.1 + 0.5 * x * (1 - 0.5 * y)", **TIGHT_NEWTON)
+    sc = _block(friction, **TIGHT_NEWTON)
     sc["mesh"]["element"] = "bbar"
-    sc["material"]["poisson"] = 0.49
-    du, dp, dJ = _compare(sc, _reference(sc))
+    sc["material"]["poisson"] = nu
+    return sc
+
+
+def test_block_bbar_varying_friction_against_reference():
+    """nu = 0.4999 with exact linear solves (the default GMRES + GAMG ones do not resolve
+    the steps there: issue 23's solver target)."""
+    sc = _bbar_block(F_VARYING, 0.4999)
+    with options.inserted(LU):
+        du, dp, dJ = _compare(sc, _reference(sc))
     assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
+
+
+@pytest.mark.parametrize("friction", [0.3, F_VARYING])
+def test_newton_steps_do_not_grow_with_nu(friction, monkeypatch):
+    """Exact Newton steps on the pressed, sheared block: as many at nu = 0.4999 as at 0.3
+    (measured 7, 7, 7 and 6, 6, 6); with rho from A's own diagonal (~ lambda: the cap
+    off) nu = 0.4999 ends in DIVERGED_MAX_IT."""
+    from contact import discretisation
+    from contact.loop import ConvergenceError
+    steps = {}
+    with options.inserted(LU):
+        for nu in (0.3, 0.49, 0.4999):
+            pr = solve(_bbar_block(friction, nu))
+            assert pr.converged
+            steps[nu] = pr.inner.iterations
+        assert max(steps.values()) <= 9 and steps[0.4999] <= steps[0.3] + 1, steps
+        monkeypatch.setattr(discretisation, "RHO_LAMBDA_CAP", 1e12)
+        with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
+            solve(_bbar_block(friction, 0.4999))
 
 
 @pytest.mark.parametrize("element", ["q1", "bbar"])

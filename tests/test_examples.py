@@ -77,7 +77,8 @@ def results_untouched():
                                          ("stability.py", "--out-dir"),
                                          ("validate.py", "--out"),
                                          ("validate_block.py", "--out"),
-                                         ("validate_incline.py", "--out")])
+                                         ("validate_incline.py", "--out"),
+                                         ("element.py", "--out")])
 def test_smoke_needs_an_output_place(name, option):
     """--smoke never falls back on runs/results/ or runs/out/."""
     _, err = script(name, "--smoke", rc=2)
@@ -257,3 +258,17 @@ def test_alart_curnier_prototype():
     worst = max(float(v) for v in re.findall(r"(?:penetration|complementarity|coulomb) ([^,\s]+)",
                                               out))
     assert worst < 1e-8
+
+
+def test_element(tmp_path):
+    """runs/element.py at its smallest: every row solved; B-bar's beam at nu = 0.4999
+    not locked (larger max |u| than Q1's on the same mesh, growing with Nd)."""
+    script("element.py", "--smoke", "--out", tmp_path / "element.md")
+    md = read(tmp_path / "element.md")
+    hertz = [r for nu in ("0.3", "0.49", "0.4999") for r in table_rows(md, nu) if len(r) == 9]
+    assert len(hertz) == 6 and not any("failed" in c for r in hertz for c in r), hertz
+    beam = {(r[1], int(r[3])): float(r[5]) for r in table_rows(md, "0.4999") if len(r) == 10}
+    assert len(beam) == 6, beam
+    for nd in (2, 3, 4):
+        assert beam[("bbar", nd)] > 1.5 * beam[("q1", nd)]          # Q1 locks
+    assert beam[("bbar", 2)] < beam[("bbar", 3)] < beam[("bbar", 4)]

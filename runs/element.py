@@ -1,0 +1,171 @@
+"""The elements against locking (-element q1 | bbar) -> runs/results/element.md.
+
+1. Hertz (runs/scenes/hertz.yaml, frictionless, core 2 nd cells across with the scene's
+   growth ratio, contact/validation/hertz.py) at nu = 0.3, 0.49, 0.4999 with each element:
+   the force against Hertz's at the same approach (corrected for the clamped depth), the
+   contact radius from the contact area, and the peak pressure against Hertz's at the
+   computed force; Newton steps and Krylov iterations.
+2. The paper's beam (F = 0.3) at nu = 0.4999: max |u| with each element over Nd, against
+   its Richardson limit (contact/validation/convergence.py) from the bbar sequence, and
+   beside it the nu = 0.3 values.
+Where the default linear solves do not converge (nu = 0.4999: GMRES + GAMG / multigrid
+degrade with lambda / mu, README) the runs use exact ones (-newton_ksp_type preonly
+-newton_pc_type lu), said in the table.
+
+Usage: python runs/element.py [--smoke --out DIR/element.md] (entry point: initialises
+PETSc; in process, 1 rank).
+"""
+import argparse
+import os
+import sys
+import time
+
+import petsc4py
+
+petsc4py.init(sys.argv[:1])
+
+from petsc4py import PETSc  # noqa: E402
+
+from contact import options, residuals  # noqa: E402
+from contact.loop import ConvergenceError  # noqa: E402
+from contact.problem import ContactProblem  # noqa: E402
+from contact.scene import validate  # noqa: E402
+from contact.validation import convergence, harness, theory as th  # noqa: E402
+from contact.validation.hertz import (R_SPHERE, analyse, approach_correction,  # noqa: E402
+                                      hertz_scene)
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu"}
+NUS = (0.3, 0.49, 0.4999)
+ELEMENTS = ("q1", "bbar")
+
+
+def exact(nu):
+    """The linear solves of a run at nu: exact ones where the default ones fail."""
+    return LU if nu > 0.499 else {}
+
+
+def run(sc, opts):
+    t0 = time.perf_counter()
+    with options.inserted(opts):
+        try:
+            pr = ContactProblem(sc, PETSc.COMM_WORLD).solve()
+        except ConvergenceError as e:
+            return None, str(e).split(";")[0], time.perf_counter() - t0
+    return pr, None, time.perf_counter() - t0
+
+
+def hertz(nd, d=0.04):
+    rows = []
+    for nu in NUS:
+        for el in ELEMENTS:
+            sc = hertz_scene(nd, nu=nu, d=d)
+            sc["mesh"]["element"] = el
+            pr, err, t = run(sc, exact(nu))
+            row = dict(nu=nu, element=el, solver="LU" if exact(nu) else "default",
+                       time=t, error=err)
+            if pr is not None:
+                a = analyse(pr, nu)
+                delta = d + approach_correction(a["P"], nu)
+                row.update(force=a["P"] / th.hertz_force(delta, R_SPHERE, 1.0, nu),
+                           radius=a["a_area"] / a["a_hertz"],
+                           peak=a["p_max"] / a["p0_hertz"], newton=pr.inner.iterations,
+                           ksp=pr.inner.ksp_iterations, dofs=pr.n_dofs)
+            rows.append(row)
+            PETSc.Sys.Print(f"hertz nd {nd} nu {nu} {el}: {row}")
+    return rows
+
+
+def beam(nds):
+    from contact.scene import load
+    rows = []
+    for nu in (0.3, 0.4999):
+        for el in ELEMENTS:
+            for nd in nds:
+                sc = load(os.path.join(HERE, "paper_beam.yaml"))
+                sc["mesh"]["nd"] = nd
+                sc["mesh"]["element"] = el
+                sc["material"]["poisson"] = nu
+                pr, err, t = run(validate(sc), exact(nu))
+                row = dict(nu=nu, element=el, nd=nd, time=t, error=err,
+                           solver="LU" if exact(nu) else "default")
+                if pr is not None:
+                    u = residuals.max_displacement(pr.comm.tompi4py(), pr.displacement())
+                    row.update(umax=u, newton=pr.inner.iterations,
+                               ksp=pr.inner.ksp_iterations, dofs=pr.n_dofs)
+                rows.append(row)
+                PETSc.Sys.Print(f"beam nd {nd} nu {nu} {el}: {row}")
+    return rows
+
+
+def f3(x):
+    return "–" if x is None else f"{x:.3f}"
+
+
+def write(path, hz, bm, nd, args, elapsed):
+    L = ["# Elements against volumetric locking (`-element q1 | bbar`)", ""]
+    L += harness.provenance_lines(1, argv=args)
+    L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min.", "",
+          f"## Hertz, nd = {nd}", "",
+          "Force against Hertz's at the same approach (corrected for the clamped depth), "
+          "contact radius from the contact area against Hertz's, peak pressure against "
+          "Hertz's, at the computed force (contact/validation/hertz.py). Targets (issue 23, "
+          "nd = 5): within 3 % in force, 6 % in radius, 8 % in peak pressure.", "",
+          "| nu | element | linear solves | force / Hertz | radius / Hertz | peak / Hertz | "
+          "Newton steps | Krylov its | time, s |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in hz:
+        if r["error"]:
+            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | failed: {r['error']} "
+                     f"| – | – | – | – | {r['time']:.1f} |")
+        else:
+            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {f3(r['force'])} | "
+                     f"{f3(r['radius'])} | {f3(r['peak'])} | {r['newton']} | {r['ksp']} | "
+                     f"{r['time']:.1f} |")
+    L += ["", "## The paper's beam: max |u| over Nd", ""]
+    lim = {}
+    for nu in (0.3, 0.4999):
+        ok = [r for r in bm if r["nu"] == nu and r["element"] == "bbar" and not r["error"]]
+        if len(ok) >= 3:
+            lim[nu] = convergence.continuum([r["nd"] for r in ok], [r["umax"] for r in ok])
+    L += ["| nu | element | linear solves | Nd | dofs | max abs(u) | / bbar's limit | "
+          "Newton steps | Krylov its | time, s |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in bm:
+        if r["error"]:
+            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {r['nd']} | – | failed: "
+                     f"{r['error']} | – | – | – | {r['time']:.1f} |")
+            continue
+        q = lim.get(r["nu"])
+        L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {r['nd']} | {r['dofs']} | "
+                 f"{r['umax']:.5e} | {f3(r['umax'] / q['value']) if q else '–'} | "
+                 f"{r['newton']} | {r['ksp']} | {r['time']:.1f} |")
+    for nu, q in lim.items():
+        L.append(f"\nnu = {nu}: bbar's max |u| limit {q['value']:.5e} ± {q['error']:.1e} "
+                 f"({q['method']}).")
+    with open(path, "w") as f:
+        f.write("\n".join(L) + "\n")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--smoke", action="store_true", help="Hertz nd = 1, beam Nd = 2, 3, 4 "
+                    "(tests; needs --out)")
+    ap.add_argument("--out", default=None, help="markdown (default runs/results/element.md)")
+    ap.add_argument("--hertz-nd", type=int, default=5)
+    ap.add_argument("--beam-nd", type=int, nargs="+", default=[4, 8, 16, 32])
+    args = ap.parse_args()
+    if args.smoke and args.out is None:
+        ap.error("--smoke needs --out (it must not write into runs/results/)")
+    out = args.out or os.path.join(HERE, "results", "element.md")
+    nd = 1 if args.smoke else args.hertz_nd
+    nds = [2, 3, 4] if args.smoke else args.beam_nd
+    t0 = time.perf_counter()
+    hz = hertz(nd)
+    bm = beam(nds)
+    if PETSc.COMM_WORLD.getRank() == 0:
+        write(out, hz, bm, nd, sys.argv[1:], time.perf_counter() - t0)
+    PETSc.Sys.Print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
