@@ -72,7 +72,8 @@ def test_uniaxial_stress_closed_form(comm):
     assert rel_err(u, exact) < 1e-8
 
 
-def test_element_stiffness_shared_shapes_equal_per_cell():
+@pytest.mark.parametrize("element", ["q1", "bbar"])
+def test_element_stiffness_shared_shapes_equal_per_cell(element):
     """Cells of one shape share one K_e (fem.element_stiffness): equal to the per-cell
     computation, on a mix of translated copies of one cell and distorted cells."""
     from contact import fem
@@ -82,6 +83,7 @@ def test_element_stiffness_shared_shapes_equal_per_cell():
     copies = ref[None] + 10.0 * rng.random((40, 1, 3))           # translated: one shape
     odd = ref[None] + 0.01 * rng.standard_normal((5, 8, 3))       # five other shapes
     X = np.concatenate([copies, odd])[rng.permutation(45)]
-    K = fem.element_stiffness(X, 2.0, 1.0)
-    each = np.stack([fem._element_stiffness(X[i:i + 1], 2.0, 1.0)[0] for i in range(45)])
+    K = fem.element_stiffness(X, 2.0, 1.0, element)
+    each = np.stack([fem._element_stiffness(X[i:i + 1], 2.0, 1.0, element)[0]
+                     for i in range(45)])
     assert np.abs(K - each).max() < 1e-12 * np.abs(each).max()
