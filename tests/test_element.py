@@ -94,6 +94,10 @@ def test_bbar_patch_test_on_distorted_cells(nu):
     assert _rel(Ku.ravel(), f.ravel()) < 1e-10
 
 
+#: exact Newton steps: the iteration itself, without the Krylov solves' inexactness (at
+#: nu = 0.4999 the default GMRES + GAMG / multigrid solves are not reliable: README)
+LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu",
+      "newton_pc_factor_mat_solver_type": "mumps"}
 #: solver settings tight enough that the comparison sees the discretisation only
 TIGHT_NEWTON = dict(mode="newton")
 
@@ -105,12 +109,11 @@ def test_paper_beam_bbar_against_reference(friction, nu):
     sc["mesh"]["element"] = "bbar"
     sc["material"]["poisson"] = nu
     sc["contact"]["friction"] = friction
-    du, dp, dJ = _compare(sc, _reference(sc))
+    with options.inserted(LU if nu > 0.499 else {}):     # (the default solves: README)
+        du, dp, dJ = _compare(sc, _reference(sc))
     assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
 
 
-#: exact Newton steps: the iteration itself, without the Krylov solves' inexactness
-LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu"}
 F_VARYING = "0.1 + 0.5 * x * (1 - 0.5 * y)"
 
 
