@@ -8,6 +8,9 @@
 2. The paper's beam (F = 0.3) at nu = 0.4999: max |u| with each element over Nd, against
    its Richardson limit (contact/validation/convergence.py) from the bbar sequence, and
    beside it the nu = 0.3 values.
+3. The paper's beam as it is (nu = 0.277), each element as a user runs it (`mpirun -n 2
+   python -m contact -nd N -element E`, whole process): max |u|'s error against the
+   continuum value of `make report` (runs/results/report/data.json), against time.
 Where the default linear solves do not converge (nu = 0.4999: GMRES + GAMG / multigrid
 degrade with lambda / mu, README) the runs use exact ones (-newton_ksp_type preonly
 -newton_pc_type lu, MUMPS, and -newton_rtol 1e-9), said in the table.
@@ -101,11 +104,32 @@ def beam(nds):
     return rows
 
 
+def paper(nds, out_dir, log=PETSc.Sys.Print):
+    """Part 3: (element, nd, wall, max |u|, error) rows, or [] without the report's q*."""
+    path = os.path.join(HERE, "results", "report", "data.json")
+    if not os.path.exists(path):
+        return [], None
+    import json
+    with open(path) as f:
+        q = json.load(f)["total"]["limits"]["umax"]["value"]
+    rows = []
+    for el in ELEMENTS:
+        for nd in nds:
+            r = harness.run_case(os.path.join(out_dir, f"paper-{el}-nd{nd}"),
+                                 ["-nd", nd, "-element", el], 2, check=False,
+                                 log=lambda m: None)
+            u = r.summary["max_displacement"] if r.ok else None
+            rows.append(dict(element=el, nd=nd, wall=r.wall, umax=u,
+                             error=None if u is None else abs(u - q) / q))
+            log(f"paper beam {el} nd {nd}: {rows[-1]}")
+    return rows, q
+
+
 def f3(x):
     return "–" if x is None else f"{x:.3f}"
 
 
-def write(path, hz, bm, nd, args, elapsed):
+def write(path, hz, bm, pb, nd, args, elapsed):
     L = ["# Elements against volumetric locking (`-element q1 | bbar`)", ""]
     L += harness.provenance_lines(1, argv=args)
     L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min.", "",
@@ -144,6 +168,17 @@ def write(path, hz, bm, nd, args, elapsed):
     for nu, q in lim.items():
         L.append(f"\nnu = {nu}: bbar's max |u| limit {q['value']:.5e} ± {q['error']:.1e} "
                  f"({q['method']}).")
+    rows, q = pb
+    if rows:
+        L += ["", "## The paper's beam as it is (nu = 0.277): error against time", "",
+              f"max |u| against the continuum value of `make report`, q* = {q:.6e} (its "
+              "total-error study, Q1); whole process on 2 ranks.", "",
+              "| element | Nd | whole process, s | max abs(u) | error |", "|---|---|---|---|---|"]
+        for r in rows:
+            L.append(f"| {r['element']} | {r['nd']} | "
+                     + ("–" if r["wall"] is None else f"{r['wall']:.2f}") + " | "
+                     + ("failed | – |" if r["umax"] is None else
+                        f"{r['umax']:.5e} | {100 * r['error']:.2f} % |"))
     with open(path, "w") as f:
         f.write("\n".join(L) + "\n")
 
@@ -165,8 +200,11 @@ def main():
     t0 = time.perf_counter()
     hz = hertz(nd)
     bm = beam(nds)
+    pb = paper([2, 3] if args.smoke else [4, 8, 16, 24, 32, 40],
+               os.path.join(os.path.dirname(out) if args.smoke else
+                            os.path.join(HERE, "out", "element")))
     if PETSc.COMM_WORLD.getRank() == 0:
-        write(out, hz, bm, nd, sys.argv[1:], time.perf_counter() - t0)
+        write(out, hz, bm, pb, nd, sys.argv[1:], time.perf_counter() - t0)
     PETSc.Sys.Print(f"wrote {out}")
     return 0
 
