@@ -53,6 +53,10 @@ _EV_RES = PETSc.Log.Event("Newton residual")
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
+#: a stage that stalls with its lowest relative residual within this factor of the
+#: tolerance has met round-off (an ill-conditioned stiffness: nu -> 0.5, a large
+#: -newton_rtol request): no friction continuation, a named hint
+ROUNDOFF_FACTOR = 1e3
 INSERT = PETSc.InsertMode.INSERT_VALUES
 
 
@@ -399,6 +403,14 @@ class CoulombNewton(Loop):
                     if not factors:
                         return it, reason
                     self._note(it, f"continuation: friction F x {factors[-1]:.3g} from here")
+                elif reason == DIVERGED_STAGNATION and len(factors) == 1 and \
+                        self._stage_best <= ROUNDOFF_FACTOR * self._rtol:
+                    self._stall_hint = (
+                        f"the residual stagnates at {self._stage_best:.1e}, within "
+                        f"{ROUNDOFF_FACTOR:g} x the tolerance {self._rtol:.0e}: round-off "
+                        f"for this problem's conditioning (e.g. nu -> 0.5); raise "
+                        f"-newton_rtol (e.g. to {10 * self._stage_best:.0e})")
+                    return it, reason
                 elif reason == DIVERGED_STAGNATION and can_continue and \
                         len(factors) <= self.continuation_levels:
                     # from the stage's start: a smaller friction, or, when that start is
@@ -498,6 +510,7 @@ class CoulombNewton(Loop):
             if reason is None and len(bests) > self.stall_its and \
                     bests[-1] > 0.5 * bests[-1 - self.stall_its]:
                 reason = DIVERGED_STAGNATION
+                self._stage_best = bests[-1] / scale
             self._monitor(it, self.residual, self._sets_text(t) if self.monitor else "")
         return it, reason
 

@@ -8,6 +8,9 @@ globalisation, the linear solves' options, and A after a solve.
   stall is detected, friction continuation solves it, and the answer is the paper's loops'
   (fast mode, tight tolerances);
 * with the continuation off the same case ends with DIVERGED_STAGNATION and its hint;
+* a tolerance below round-off ends in DIVERGED_STAGNATION with a hint to raise -newton_rtol
+  within a few stalled steps, not in 100 steps of friction continuation (the bbar beam at
+  nu = 0.4999, Nd = 16, stagnates at 1.6e-11 against the default 1e-11);
 * F = 100 at Nd = 6 with -newton_stall_its 4: the climb from F x 0.3 back to F stalls, and
   the next try starts halfway (F x sqrt(0.3)) instead of repeating the climb that stalled
   (F = 100 at Nd = 16 cycled that way to DIVERGED_MAX_IT); the answer is that of the
@@ -91,6 +94,15 @@ def test_a_stalled_climb_goes_halfway():
     assert ref.inner.frictions != path
     (u, p), (ur, pref) = fields(pr), fields(ref)
     assert rel_err(u, ur) < 1e-8 and np.abs(p - pref).max() < 1e-8 * np.abs(pref).max()
+
+
+def test_roundoff_stagnation_is_named():
+    with options.inserted({"newton_rtol": "1e-16"}):
+        with pytest.raises(ConvergenceError, match="DIVERGED_STAGNATION at iteration "
+                                                   r"(\d+) .*round-off.*raise -newton_rtol") as e:
+            solve(_beam(3, 0.3))
+    import re
+    assert int(re.search(r"iteration (\d+)", str(e.value)).group(1)) <= 30
 
 
 #: (scene, at most this many Newton steps): measured 8 (beam F = 0.3, Nd 3, cold), 4 (beam
