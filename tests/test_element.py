@@ -16,8 +16,9 @@ the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
 """
 import numpy as np
 import pytest
-from conftest import block_scene, paper_scene, solve
-from test_independent_reference import TOL, _compare, _distorted, _reference, _rel
+from conftest import gather, paper_scene, solve
+from test_independent_reference import (TOL, _compare, _distorted, _reference, _rel,
+                                       pressed_block)
 
 from contact import fem, options
 from contact.discretisation import element_of
@@ -158,14 +159,9 @@ def test_pressed_block_closed_form_nearly_incompressible(element):
     """Frictionless block on the foundation pressed by p, rollers x = 0 and y = 0, nu =
     0.4999: uniaxial stress, u = p/E (nu x, nu y, -z), pressure p at every contact node."""
     E, nu, p = 1.0e3, 0.4999, 2.0
-    parts = {"sx": {"plane": ["x", 0.0], "type": "symmetry"},
-             "sy": {"plane": ["y", 0.0], "type": "symmetry"},
-             "contact": {"plane": ["z", 0.0], "type": "contact"},
-             "top": {"plane": ["z", 1.0], "type": "traction", "traction": [0.0, 0.0, -p]}}
-    sc = block_scene(parts, nd=3, young=E, poisson=nu, size=(1.5, 1.0, 1.0), **TIGHT_NEWTON)
+    sc = pressed_block(nu, 3, E, p, **TIGHT_NEWTON)
     sc["mesh"]["element"] = element
     pr = solve(sc)
-    from conftest import gather
     X, U = gather(pr)[:2]
     x, y, z = X.T
     assert _rel(U, p / E * np.c_[nu * x, nu * y, -z]) < 1e-8

@@ -187,15 +187,21 @@ def test_refuses_what_it_does_not_model():
 
 
 # ------------------------------------------ package and reference against a closed form
-def test_uniform_compression_closed_form():
-    """Frictionless block on the foundation pressed by p, rollers x=0 and y=0: uniaxial
-    stress, pressure p at every contact node, u = p/E (nu x, nu y, -z). Both codes."""
-    E, nu, p = 1.0e3, 0.3, 2.0
+def pressed_block(nu, nd, E=1.0e3, p=2.0, **solver):
+    """Frictionless block (0,1.5)x(0,1)x(0,1) on the foundation pressed by p on top,
+    rollers x = 0 and y = 0: uniaxial stress, u = p/E (nu x, nu y, -z), pressure p."""
     parts = {"sx": {"plane": ["x", 0.0], "type": "symmetry"},
              "sy": {"plane": ["y", 0.0], "type": "symmetry"},
              "contact": {"plane": ["z", 0.0], "type": "contact"},
              "top": {"plane": ["z", 1.0], "type": "traction", "traction": [0.0, 0.0, -p]}}
-    sc = block_scene(parts, nd=2, young=E, poisson=nu, size=(1.5, 1.0, 1.0), **TIGHT_SSN)
+    return block_scene(parts, nd=nd, young=E, poisson=nu, size=(1.5, 1.0, 1.0), **solver)
+
+
+def test_uniform_compression_closed_form():
+    """Frictionless block on the foundation pressed by p, rollers x=0 and y=0: uniaxial
+    stress, pressure p at every contact node, u = p/E (nu x, nu y, -z). Both codes."""
+    E, nu, p = 1.0e3, 0.3, 2.0
+    sc = pressed_block(nu, 2, E, p, **TIGHT_SSN)
     ref = _reference(sc)
     x, y, z = ref["xyz"].T
     exact = p / E * np.c_[nu * x, nu * y, -z]
