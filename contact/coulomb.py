@@ -65,7 +65,9 @@ class CoulombNewton(Loop):
     ``-newton_``. A, b: the elasticity matrix (clamped rows eliminated, diagonal
     `diag_scale`) and load; cs: the contact set; gap: a contact Vec (a load increment's);
     rho_diag: the diagonal rho = A_nn / w is read from (default A's; discretisation.py's
-    contact_diagonal for a nearly incompressible B-bar body)."""
+    contact_diagonal for a nearly incompressible B-bar body); split: such a body's
+    mixed.Split, or None: its [A_g G^T] rows are then the Jacobian's (changed as A's would
+    be) and the steps solve the mixed u-p system (A stays as it is)."""
 
     prefix = "newton_"
     title = "Newton"
@@ -76,14 +78,19 @@ class CoulombNewton(Loop):
             "(or fast)")
 
     def __init__(self, A, b, cs, clamped, diag_scale, mg=None, close_first=False,
-                 rho_diag=None):
+                 rho_diag=None, split=None):
         super().__init__(A.getComm())
         self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
         self.close_first = bool(close_first)   # the glued first step closes every node
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
+        self.split = split
+        #: the Jacobian's matrices: A itself (its contact rows changed during a solve), or
+        #: the split's [A_g, G^T] (A then stays as it is)
+        self.K = A if split is None else split.Ag
+        self.mats = [self.K] if split is None else [split.Ag, split.Gt]
         self.bc = None
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
-        self.diag_scale = float(diag_scale)
+        self.diag_scale = float(diag_scale if split is None else split.diag_scale)
         self.ksp_iterations = 0
         self.pc_setups = 0
         self._rebuild = False
@@ -94,10 +101,11 @@ class CoulombNewton(Loop):
         self.n_active = self.n_stick = self.n_slip = 0
         self.R, self.r, self.dx, self.xt, self.free, self.rhs, self.xw, self.dxw = \
             (b.duplicate() for _ in range(8))
-        A.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)   # rows zeroed, restored
-        # A's flags, which changing its rows clears: set again by _restore (A symmetric is
-        # A SPD here: fem.configure_elasticity sets both; petsc4py 3.18 cannot query SPD)
-        self._symmetric = A.isSymmetricKnown() == (True, True)
+        for M in self.mats:                      # rows zeroed, restored
+            M.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        # K's flags, which changing its rows clears: set again by _restore (K symmetric is
+        # K SPD here: fem.configure_elasticity sets both; petsc4py 3.18 cannot query SPD)
+        self._symmetric = self.K.isSymmetricKnown() == (True, True)
         self.free.set(1.0)
         self.free.setValues(self.clamped, np.zeros(len(self.clamped)))
         self.free.assemble()
@@ -133,9 +141,14 @@ class CoulombNewton(Loop):
         if not 0.0 < self.linesearch_min <= 1.0:
             raise ValueError(f"-newton_linesearch_min must be in (0, 1], got "
                              f"{self.linesearch_min}")
-        with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
-                               self.prefix + "ksp_gmres_restart": "30"}):
-            multigrid.configure(self.ksp, self.mg)
+        defaults = {self.prefix + "pc_gamg_reuse_interpolation": "true",
+                    self.prefix + "ksp_gmres_restart": "30"}
+        if self.split is not None:                # the mixed u-p system (mixed.py)
+            self.split.configure(self.ksp)
+            self.pc_setups += 1                   # (A's own preconditioner: the first step's)
+        else:
+            with options.inserted(defaults):
+                multigrid.configure(self.ksp, self.mg)
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
@@ -154,21 +167,34 @@ class CoulombNewton(Loop):
 
     # -- the contact rows of A (host, once) ----------------------------------------------------
     def _contact_rows(self):
-        """The rows of A at the contact dofs as padded (3, m, W) column and value arrays
-        (padding: column -1, which MatSetValues ignores), and the positions of the node's
-        own three dofs in them. The three rows of a node share their columns (A's block
-        pattern); checked."""
-        cs, A, m = self.cs, self.A, self.cs.local_size
+        """S, the rows of A at the contact dofs (the residual reads them); and the rows of
+        the Jacobian's matrices there (self.mats: A, or A_g and G^T) as padded (3, m, W)
+        column and value arrays (padding: column -1, which MatSetValues ignores), with the
+        positions of the node's own three dofs in K's. The three rows of a node share
+        their columns (the block pattern); checked."""
+        cs, m = self.cs, self.cs.local_size
         rows = np.concatenate(cs.dofs).astype(PETSc.IntType)
-        r0, r1 = A.getOwnershipRange()
-        isr = PETSc.IS().createGeneral(rows, comm=self.comm)
-        isc = PETSc.IS().createStride(r1 - r0, r0, 1, comm=self.comm)
-        S = A.createSubMatrix(isr, isc)
-        ia, ja, a = S.getValuesCSR()
-        for o in (isr, isc):
-            o.destroy()
-        self.S, self.ys = S, S.createVecLeft()        # R at the contact rows: S x - b
         self.rows = rows
+        isr = PETSc.IS().createGeneral(rows, comm=self.comm)
+        self.padded = []
+        for M in [self.A] + [M for M in self.mats if M is not self.A]:   # A first, once
+            c0, c1 = M.getOwnershipRangeColumn()
+            isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=self.comm)
+            S = M.createSubMatrix(isr, isc)
+            isc.destroy()
+            if M is self.A:
+                self.S, self.ys = S, S.createVecLeft()     # R at the contact rows: S x - b
+            if any(M is N for N in self.mats):
+                self.padded.append(self._padded(S, m))
+            if M is not self.A:
+                S.destroy()
+        isr.destroy()
+        self.cols, self.vals = self.padded[0]
+        self.own = [np.argmax(self.cols[2] == np.asarray(cs.dofs[k])[:, None], axis=1)
+                    for k in range(3)]
+
+    def _padded(self, S, m):
+        ia, ja, a = S.getValuesCSR()
         n = np.diff(ia)
         W = int(n.max()) if n.size else 1
         pos = np.arange(ja.size) - np.repeat(ia[:-1], n)
@@ -177,36 +203,36 @@ class CoulombNewton(Loop):
         vals = np.zeros((3 * m, W))
         cols[row, pos] = ja
         vals[row, pos] = a
-        self.cols, self.vals = cols.reshape(3, m, W), vals.reshape(3, m, W)
-        same = np.array_equal(self.cols[0], self.cols[2]) and \
-            np.array_equal(self.cols[1], self.cols[2])
+        cols, vals = cols.reshape(3, m, W), vals.reshape(3, m, W)
+        same = np.array_equal(cols[0], cols[2]) and np.array_equal(cols[1], cols[2])
         if not self.comm.tompi4py().allreduce(same, op=MPI.LAND):
-            raise RuntimeError("the Newton Jacobian needs A's three rows of a contact node "
+            raise RuntimeError("the Newton Jacobian needs the three rows of a contact node "
                                "to share their columns (A's 3x3 block pattern)")
-        self.own = [np.argmax(self.cols[2] == np.asarray(cs.dofs[k])[:, None], axis=1)
-                    for k in range(3)]
+        return cols, vals
 
-    def _set_contact_rows(self, rows, cols, vals):
-        """Insert rows (k,) with padded cols (k, W) and vals (k, W) into A (not collective:
-        a rank with no contact row inserts nothing; petsc4py's setValuesRCV divides by the
-        row count)."""
+    def _set_contact_rows(self, rows, cols, vals, M=None):
+        """Insert rows (k,) with padded cols (k, W) and vals (k, W) into M (default K; not
+        collective: a rank with no contact row inserts nothing; petsc4py's setValuesRCV
+        divides by the row count)."""
         if rows.size == 0:
             return
-        self.A.setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType), cols,
-                            vals[:, None, :], INSERT)
+        (self.K if M is None else M).setValuesRCV(rows.reshape(-1, 1).astype(PETSc.IntType),
+                                                  cols, vals[:, None, :], INSERT)
 
     def _own_rows(self):
-        """A's own contact rows back into A (not assembled)."""
-        W = self.cols.shape[2]
-        self._set_contact_rows(self.rows, self.cols.reshape(-1, W), self.vals.reshape(-1, W))
+        """The Jacobian's matrices' own contact rows back (not assembled)."""
+        for M, (cols, vals) in zip(self.mats, self.padded):
+            W = cols.shape[2]
+            self._set_contact_rows(self.rows, cols.reshape(-1, W), vals.reshape(-1, W), M)
 
     def _restore(self):
-        """A as it was (the Jacobian is A with its contact rows changed)."""
+        """The Jacobian's matrices as they were (A, or A_g and G^T)."""
         self._own_rows()
-        self.A.assemble()
+        for M in self.mats:
+            M.assemble()
         if self._symmetric:
-            self.A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-            self.A.setOption(PETSc.Mat.Option.SPD, True)
+            self.K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+            self.K.setOption(PETSc.Mat.Option.SPD, True)
 
     def _reaction(self, x):
         """R = A x - b at the contact dofs (from A's own rows, whatever the Jacobian has
@@ -276,7 +302,7 @@ class CoulombNewton(Loop):
             st["slip"] = np.zeros_like(st["stick"])
         _EV_MAT.begin()
         cs, c = self.cs, self.c
-        K, rhs = self.A, self.rhs                    # A itself: its contact rows change
+        K, rhs = self.K, self.rhs                    # A itself: its contact rows change
         self._own_rows()
         self.r.copy(rhs)
         rhs.scale(-1.0)
@@ -298,6 +324,11 @@ class CoulombNewton(Loop):
             rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
             cols = np.concatenate([self.cols[k][q] for k in range(2)])
             self._set_contact_rows(rows, cols, np.concatenate(V))
+            for M, (gc, gv) in zip(self.mats[1:], self.padded[1:]):   # G^T: the same rows
+                self._set_contact_rows(                                 # without rho terms
+                    rows, np.concatenate([gc[k][q] for k in range(2)]),
+                    np.concatenate([gv[k][q] - (F * n[k])[:, None] * gv[2][q]
+                                    for k in range(2)]), M)
             # rhs at slip rows: -(I + gam P) r_t = -r_t - gam P r_t
             r1, r2 = st["r1"][q], st["r2"][q]
             pr = n[0] * r1 + n[1] * r2
@@ -306,7 +337,8 @@ class CoulombNewton(Loop):
         for k in range(2):              # collective: every rank, with or without slip nodes
             c[k].setArray(t[k])
             cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
-        K.assemble()
+        for M in self.mats:
+            M.assemble()
         # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick); their columns stay (the
         # rows off the contact dofs stay A's, which the residual reads)
         act, stick, X = st["active"], st["stick"], st["X"]
@@ -318,6 +350,8 @@ class CoulombNewton(Loop):
         self.dx.assemble()
         self._dirichlet = (rows, vals)
         K.zeroRows(rows, self.diag_scale, self.dx, rhs)
+        for M in self.mats[1:]:
+            M.zeroRows(rows, diag=0.0)
         _EV_MAT.end()
         return K, rhs
 
@@ -328,7 +362,13 @@ class CoulombNewton(Loop):
         step builds a new one) or fails (then it is built anew and the solve repeated).
         Returns False when the linear solve failed."""
         _EV_KSP.begin()
-        self.ksp.setOperators(K)
+        if self.split is not None:
+            self.split.M.assemble()               # its blocks' contact rows changed
+            b, sol = self.split.vecs(rhs, self.dx)
+            self.split.p.set(0.0)
+        else:
+            self.ksp.setOperators(K)
+            b, sol = rhs, self.dx
         self.ksp.setTolerances(rtol=rtol)
         for attempt in range(2):
             reuse = self.pc_reuse and self.pc_setups > 0 and not self._rebuild and attempt == 0
@@ -337,7 +377,7 @@ class CoulombNewton(Loop):
                 self.pc_setups += 1
             self._rebuild = False
             with multigrid.galerkin_options(self.ksp):
-                self.ksp.solve(rhs, self.dx)
+                self.ksp.solve(b, sol)
             its = self.ksp.getIterationNumber()
             self.ksp_iterations += its
             ok = self.ksp.getConvergedReason() > 0
@@ -345,6 +385,9 @@ class CoulombNewton(Loop):
                 break
         if its > self.pc_rebuild_its:
             self._rebuild = True
+        if self.split is not None:
+            b.destroy()
+            sol.destroy()
         self.dx.pointwiseMult(self.dx, self.free)         # exact eliminated values
         self.dx.setValues(*self._dirichlet)
         self.dx.assemble()
@@ -365,7 +408,8 @@ class CoulombNewton(Loop):
             it, reason = self._iterate(x)
         finally:
             self._restore()
-            self.ksp.reset()              # the preconditioner's memory (its coarse levels)
+            if self.split is None:        # (a reset fieldsplit would forget its splits)
+                self.ksp.reset()          # the preconditioner's memory (its coarse levels)
             _EV_ITER.end()
         hint = self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else \
             self._stall_hint if reason == DIVERGED_STAGNATION else None

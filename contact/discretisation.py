@@ -13,7 +13,7 @@ vectors, and the solution lives in the problem (problem.py).
 import numpy as np
 from mpi4py import MPI
 
-from . import fem, mesh, multigrid, options
+from . import fem, mesh, mixed, multigrid, options
 from .contactset import ContactSet
 from .frame import ContactFrame, basis
 from .scene import AXES, SceneError, foundation_normal
@@ -104,6 +104,13 @@ class Discretisation:
         #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
         #: finest interpolation is built once, for every load increment's solve
         self.multigrid = multigrid.for_problem(self)
+
+    def pressure_split(self, mode="auto", pc_given=False):
+        """The mixed u-p split of a nearly incompressible bbar body's linear solves, or
+        None (mixed.split_for; mode: -newton_pressure_split); built on first use, once."""
+        if getattr(self, "_split", (None,))[0] != (mode, pc_given):
+            self._split = ((mode, pc_given), mixed.split_for(self, mode, pc_given))
+        return self._split[1]
 
     def _contact_diagonal(self):
         """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w

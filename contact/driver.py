@@ -13,7 +13,7 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, multigrid, options, output, residuals as res
+from . import fem, mixed, multigrid, options, output, residuals as res
 from .apg import APG
 from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
@@ -78,10 +78,13 @@ class NewtonLoops:
 
     def __init__(self, disc, b, gap, contact_held=False):
         self.cs = disc.cs
+        split = disc.pressure_split(options.get("newton_pressure_split", disc.scene),
+                                    PETSc.Options().hasName("newton_pc_type"))
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
                                    disc.multigrid, close_first=contact_held,
-                                   rho_diag=disc.contact_diagonal)
-        self.inner.set_from_options(disc.scene)
+                                   rho_diag=disc.contact_diagonal, split=split)
+        with options.inserted({} if split is None else mixed.NEWTON_DEFAULTS):
+            self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap)
 
     def solve(self, x, l, g0):

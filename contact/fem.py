@@ -146,11 +146,14 @@ def nodal_face_weights(faces, coords):
     return w
 
 
-def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1"):
+def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
+                       lam=None):
     """Global stiffness matrix A (AIJ from the DM, block size 3) of `element` (ELEMENTS),
     unconstrained; in the basis of a contact frame (contact/frame.py: T^T A T) when one is
-    given."""
-    lam, mu = lame(young, poisson)
+    given. lam: Lame's lambda instead of that of (young, poisson) (a split of the
+    volumetric stiffness, mixed.py)."""
+    lam_, mu = lame(young, poisson)
+    lam = lam_ if lam is None else lam
     A = dm.createMat()           # createMatrix is gone in petsc4py >= 3.20
     if A.getBlockSize() != 3:
         A.setBlockSize(3)
@@ -179,6 +182,49 @@ def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
             Ke = frame.element_matrices(Ke, c)
         np.add.at(diag, c.ravel(), np.diagonal(Ke, axis1=1, axis2=2).reshape(-1, 3))
     return local_to_global(dm, diag.ravel())
+
+
+def cell_divergence(X):
+    """g (c, 8, 3) = int_e dN_a/dx_i dx (u -> int_e div u dx = sum g_ai u_ai) and the
+    volumes |e| (c,) of cells X (c, 8, 3)."""
+    dNdx, wdet = _geometry(X)
+    return np.einsum("cgai,cg->cai", dNdx, wdet), wdet.sum(axis=1)
+
+
+def assemble_divergence(A, conn, coords, frame=None, free=None):
+    """G (local cells x A's columns, AIJ): row e is g_e of cell_divergence (in the contact
+    frame's basis when one is given), so that (G u)_e = int_e div u dx; and the local
+    cells' volumes. Rows: the ranks' cells in order (rank r's after rank r-1's). free: a
+    local (owned + ghost) dof array, 0 at the clamped dofs, whose entries are then 0
+    (kept in the pattern)."""
+    nc = conn.shape[0]
+    comm = A.getComm()
+    n_local = A.getLocalSize()[1]
+    G = PETSc.Mat().create(comm=comm)
+    G.setSizes(((nc, PETSc.DETERMINE), (n_local, PETSc.DETERMINE)))
+    G.setType(PETSc.Mat.Type.AIJ)
+    G.setBlockSizes(1, 3)                        # columns: A's (its LGMap's blocks)
+    G.setPreallocationNNZ((24, 24))
+    start = comm.tompi4py().exscan(nc) or 0
+    rmap = PETSc.LGMap().create(np.arange(start, start + nc, dtype=PETSc.IntType), comm=comm)
+    G.setLGMap(rmap, A.getLGMap()[1])
+    vol = np.zeros(nc)
+    idx_type = PETSc.IntType
+    for s in range(0, nc, CHUNK):
+        c = conn[s:s + CHUNK]
+        g, vol[s:s + CHUNK] = cell_divergence(coords[c])
+        if frame is not None:
+            T = np.where(frame.local_mask[c][:, :, None, None], frame.Q, np.eye(3))
+            g = np.einsum("maij,maj->mai", T, g)
+        cols = (3 * c[:, :, None] + np.arange(3)).reshape(c.shape[0], 24).astype(idx_type)
+        if free is not None:
+            g = g * free[cols].reshape(g.shape)
+        rows = (s + np.arange(c.shape[0])).astype(idx_type).reshape(-1, 1)
+        G.setValuesLocalRCV(rows, cols, g.reshape(c.shape[0], 1, 24),
+                            addv=PETSc.InsertMode.INSERT_VALUES)
+    G.assemble()
+    rmap.destroy()
+    return G, vol
 
 
 def local_to_global(dm, local_array, gvec=None):

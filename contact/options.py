@@ -153,6 +153,12 @@ REGISTRY = [
     Option("newton_pc_rebuild_its", 40, int, "with -newton_pc_reuse: build a new "
            "preconditioner after a linear solve of more than N iterations (and after a "
            "failed one)", "N"),
+    Option("newton_pressure_split", "auto", str, "the linear solves of a nearly "
+           "incompressible B-bar body (nu > 0.4): auto, GMRES on the mixed u-p system with "
+           "a Schur fieldsplit (-newton_fieldsplit_u_*, -newton_fieldsplit_p_*, "
+           "-newton_pc_fieldsplit_*; -newton_ew_max 0.01), which converges at nu = 0.4999 "
+           "where GAMG on the condensed stiffness does not; off, GMRES on the condensed "
+           "stiffness", "auto|off"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
     Option("newton_watchdog", 3, int, "full Newton steps taken also when the residual "
@@ -187,7 +193,7 @@ PETSC_AT_EXIT = ("log_view", "options_left", "malloc_dump", "malloc_debug", "log
                  "memory_view", "objects_dump", "check_pointer_intensity")
 #: PETSc objects configured under the -ssn_ and -newton_ prefixes (their options are
 #: PETSc's to check)
-PETSC_UNDER_SSN = ("ksp_", "pc_", "mg_", "sub_", "mat_", "gamg_")
+PETSC_UNDER_SSN = ("ksp_", "pc_", "mg_", "sub_", "mat_", "gamg_", "fieldsplit_")
 KSP_PREFIXES = ("ssn_", "newton_")
 OWN_PREFIXES = ("apg_", "uzawa_", "fp_", "ssn_", "newton_", "c2f_", "solver_", "scene_",
                 "mesh_")

@@ -11,9 +11,14 @@
 3. The paper's beam as it is (nu = 0.277), each element as a user runs it (`mpirun -n 2
    python -m contact -nd N -element E`, whole process): max |u|'s error against the
    continuum value of `make report` (runs/results/report/data.json), against time.
-Where the default linear solves do not converge (nu = 0.4999: GMRES + GAMG / multigrid
-degrade with lambda / mu, README) the runs use exact ones (-newton_ksp_type preonly
--newton_pc_type lu, MUMPS, and -newton_rtol 1e-9), said in the table.
+4. The Newton steps' linear solves over nu (Hertz, bbar): the default for nu > 0.4 (GMRES
+   on the mixed u-p system with a Schur fieldsplit, contact/mixed.py) against GMRES +
+   GAMG on the condensed stiffness (-newton_pressure_split off), Newton steps, Krylov
+   iterations and time, with q1 at nu = 0.3 (the default there) as the reference.
+q1 at nu = 0.4999 runs with exact linear solves (-newton_ksp_type preonly -newton_pc_type
+lu, MUMPS): GMRES + GAMG do not converge on its locked stiffness. At nu = 0.4999 every run
+has -newton_rtol 1e-9 (round-off: the beam at Nd = 16 stagnates at ~2e-11, above the
+default 1e-11). Said in the tables.
 
 Usage: python runs/element.py [--smoke --out DIR/element.md] (entry point: initialises
 PETSc; in process, 1 rank).
@@ -44,11 +49,20 @@ NUS = (0.3, 0.49, 0.4999)
 ELEMENTS = ("q1", "bbar")
 
 
-def exact(nu):
-    """The linear solves of a run at nu: exact ones where the default ones fail; and there
-    -newton_rtol 1e-9: at nu = 0.4999 round-off leaves relative residuals ~2e-11 on the
-    beam at Nd = 16 (lambda / mu = 5000), above the default 1e-11."""
-    return dict(LU, newton_rtol="1e-9") if nu > 0.499 else {}
+def exact(nu, element):
+    """The options of a run at nu: exact linear solves where the default ones fail (q1 at
+    nu = 0.4999), and there -newton_rtol 1e-9: at nu = 0.4999 round-off leaves relative
+    residuals ~2e-11 on the beam at Nd = 16 (lambda / mu = 5000), above the default
+    1e-11."""
+    if nu <= 0.499:
+        return {}
+    return dict(LU, newton_rtol="1e-9") if element == "q1" else {"newton_rtol": "1e-9"}
+
+
+def solver_name(nu, element):
+    o = exact(nu, element)
+    return ("LU, " if "newton_pc_type" in o else "default, ") + "rtol 1e-9" if o else \
+        "default"
 
 
 def run(sc, opts):
@@ -67,9 +81,8 @@ def hertz(nd, d=0.04):
         for el in ELEMENTS:
             sc = hertz_scene(nd, nu=nu, d=d)
             sc["mesh"]["element"] = el
-            pr, err, t = run(sc, exact(nu))
-            row = dict(nu=nu, element=el, solver="LU, rtol 1e-9" if exact(nu) else "default",
-                       time=t, error=err)
+            pr, err, t = run(sc, exact(nu, el))
+            row = dict(nu=nu, element=el, solver=solver_name(nu, el), time=t, error=err)
             if pr is not None:
                 a = analyse(pr, nu)
                 delta = d + approach_correction(a["P"], nu)
@@ -92,15 +105,38 @@ def beam(nds):
                 sc["mesh"]["nd"] = nd
                 sc["mesh"]["element"] = el
                 sc["material"]["poisson"] = nu
-                pr, err, t = run(validate(sc), exact(nu))
+                pr, err, t = run(validate(sc), exact(nu, el))
                 row = dict(nu=nu, element=el, nd=nd, time=t, error=err,
-                           solver="LU, rtol 1e-9" if exact(nu) else "default")
+                           solver=solver_name(nu, el))
                 if pr is not None:
                     u = residuals.max_displacement(pr.comm.tompi4py(), pr.displacement())
                     row.update(umax=u, newton=pr.inner.iterations,
                                ksp=pr.inner.ksp_iterations, dofs=pr.n_dofs)
                 rows.append(row)
                 PETSc.Sys.Print(f"beam nd {nd} nu {nu} {el}: {row}")
+    return rows
+
+
+SPLIT_NUS = (0.3, 0.45, 0.49, 0.499, 0.4999)
+
+
+def solves(nd, d=0.04):
+    """Part 4: Hertz with bbar over nu, the split (auto) against GAMG on K (off); q1 at
+    nu = 0.3 first."""
+    rows = []
+    cases = [(0.3, "q1", "auto")] + [(nu, "bbar", m) for nu in SPLIT_NUS
+                                     for m in ("auto", "off") if nu > 0.4 or m == "auto"]
+    for nu, el, mode in cases:
+        sc = hertz_scene(nd, nu=nu, d=d)
+        sc["mesh"]["element"] = el
+        opts = dict(exact(nu, el), newton_pressure_split=mode)
+        pr, err, t = run(sc, opts)
+        row = dict(nu=nu, element=el, split=mode if el == "bbar" and nu > 0.4 else "–",
+                   time=t, error=err, rtol=opts.get("newton_rtol", "1e-11"))
+        if pr is not None:
+            row.update(newton=pr.inner.iterations, ksp=pr.inner.ksp_iterations)
+        rows.append(row)
+        PETSc.Sys.Print(f"solves hertz nd {nd}: {row}")
     return rows
 
 
@@ -129,7 +165,7 @@ def f3(x):
     return "–" if x is None else f"{x:.3f}"
 
 
-def write(path, hz, bm, pb, nd, args, elapsed):
+def write(path, hz, bm, pb, sv, nd, args, elapsed):
     L = ["# Elements against volumetric locking (`-element q1 | bbar`)", ""]
     L += harness.provenance_lines(1, argv=args)
     L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min.", "",
@@ -168,6 +204,26 @@ def write(path, hz, bm, pb, nd, args, elapsed):
     for nu, q in lim.items():
         L.append(f"\nnu = {nu}: bbar's max |u| limit {q['value']:.5e} ± {q['error']:.1e} "
                  f"({q['method']}).")
+    if sv:
+        base = sv[0]
+        L += ["", f"## The Newton steps' linear solves over nu (Hertz, nd = {nd})", "",
+              "bbar with the default linear solves for nu > 0.4 (`-newton_pressure_split "
+              "auto`: GMRES on the mixed u-p system, Schur fieldsplit, one GAMG cycle on "
+              "A_g, diagonal pressure Schur complement, restart 100, `-newton_ew_max "
+              "0.01`; contact/mixed.py) against GMRES + GAMG on the condensed stiffness "
+              "(`off`, restart 30, `-newton_ew_max 0.1`); q1 at nu = 0.3, the default "
+              "there, first. Krylov its: all Newton steps together; ratio: to q1 at "
+              "nu = 0.3. Target (issue 23): at most 3x at nu = 0.4999.", "",
+              "| nu | element | split | Newton steps | Krylov its | its / q1's at 0.3 | "
+              "time, s | time / q1's | -newton_rtol |", "|---|---|---|---|---|---|---|---|---|"]
+        for r in sv:
+            if r["error"]:
+                L.append(f"| {r['nu']} | {r['element']} | {r['split']} | failed: "
+                         f"{r['error']} | – | – | {r['time']:.1f} | – | {r['rtol']} |")
+                continue
+            L.append(f"| {r['nu']} | {r['element']} | {r['split']} | {r['newton']} | "
+                     f"{r['ksp']} | {r['ksp'] / base['ksp']:.1f} | {r['time']:.1f} | "
+                     f"{r['time'] / base['time']:.1f} | {r['rtol']} |")
     rows, q = pb
     if rows:
         L += ["", "## The paper's beam as it is (nu = 0.277): error against time", "",
@@ -200,11 +256,12 @@ def main():
     t0 = time.perf_counter()
     hz = hertz(nd)
     bm = beam(nds)
+    sv = solves(nd)
     pb = paper([2, 3] if args.smoke else [4, 8, 16, 24, 32, 40],
                os.path.join(os.path.dirname(out) if args.smoke else
                             os.path.join(HERE, "out", "element")))
     if PETSc.COMM_WORLD.getRank() == 0:
-        write(out, hz, bm, pb, nd, sys.argv[1:], time.perf_counter() - t0)
+        write(out, hz, bm, pb, sv, nd, sys.argv[1:], time.perf_counter() - t0)
     PETSc.Sys.Print(f"wrote {out}")
     return 0
 

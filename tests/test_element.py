@@ -8,8 +8,9 @@ the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
 * the reference's B-bar on its own: symmetric, exactly the six rigid motions in its null
   space, and the patch test (a linear field is exact) on distorted cells at nu = 0.4999;
 * the package against the reference solving whole contact scenes with bbar (the beam
-  frictionless and at F = 0.3, the block with a varying F), nu = 0.3 and 0.4999, on any
-  number of ranks;
+  frictionless and at F = 0.3, the block with a varying F), nu = 0.3 and 0.4999 (there
+  with the default linear solves, contact/mixed.py, and with exact ones), on any number
+  of ranks;
 * a closed form at nu = 0.4999: the frictionless block pressed on the foundation, uniaxial
   stress, u = p/E (nu x, nu y, -z) and pressure p at every contact node;
 * what -element auto picks, and a bad -element refused in one line.
@@ -95,22 +96,25 @@ def test_bbar_patch_test_on_distorted_cells(nu):
     assert _rel(Ku.ravel(), f.ravel()) < 1e-10
 
 
-#: exact Newton steps: the iteration itself, without the Krylov solves' inexactness (at
-#: nu = 0.4999 the default GMRES + GAMG / multigrid solves are not reliable: README)
+#: exact Newton steps: the iteration itself, without the Krylov solves' inexactness
 LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu",
       "newton_pc_factor_mat_solver_type": "mumps"}
+#: the Newton steps' linear solves at nu = 0.4999: the default ones (GMRES on the mixed
+#: u-p system, contact/mixed.py) and exact ones
+SOLVES = {"default": {}, "lu": LU}
 #: solver settings tight enough that the comparison sees the discretisation only
 TIGHT_NEWTON = dict(mode="newton")
 
 
-@pytest.mark.parametrize("nu", [0.3, 0.4999])
+@pytest.mark.parametrize("nu,solves", [(0.3, "default"), (0.4999, "default"),
+                                       (0.4999, "lu")])
 @pytest.mark.parametrize("friction", [0.0, 0.3])
-def test_paper_beam_bbar_against_reference(friction, nu):
+def test_paper_beam_bbar_against_reference(friction, nu, solves):
     sc = paper_scene(nd=2, **TIGHT_NEWTON)
     sc["mesh"]["element"] = "bbar"
     sc["material"]["poisson"] = nu
     sc["contact"]["friction"] = friction
-    with options.inserted(LU if nu > 0.499 else {}):     # (the default solves: README)
+    with options.inserted(SOLVES[solves]):
         du, dp, dJ = _compare(sc, _reference(sc))
     assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
 
@@ -126,11 +130,11 @@ def _bbar_block(friction, nu):
     return sc
 
 
-def test_block_bbar_varying_friction_against_reference():
-    """nu = 0.4999 with exact linear solves (the default GMRES + GAMG ones do not resolve
-    the steps there: issue 23's solver target)."""
+@pytest.mark.parametrize("solves", ["default", "lu"])
+def test_block_bbar_varying_friction_against_reference(solves):
+    """nu = 0.4999, the default linear solves (the mixed u-p system's) and exact ones."""
     sc = _bbar_block(F_VARYING, 0.4999)
-    with options.inserted(LU):
+    with options.inserted(SOLVES[solves]):
         du, dp, dJ = _compare(sc, _reference(sc))
     assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
 

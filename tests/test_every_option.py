@@ -71,6 +71,7 @@ CASES = {
     "newton_pc_reuse": ("false", {}),
     "newton_pc_rebuild_its": ("5", {}),
     "newton_linesearch_min": ("0.1", {}),
+    "newton_pressure_split": ("off", {"poisson": "0.45"}),
     "newton_watchdog": ("0", {}),
     "newton_stall_its": ("5", {}),
     "newton_continuation_factor": ("0.5", {}),

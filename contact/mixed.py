@@ -1,0 +1,165 @@
+"""A nearly incompressible B-bar body's linear solves: its volumetric stiffness split off
+into a cell pressure, so that the Krylov iterations do not grow with lambda / mu.
+
+B-bar's stiffness (fem.py) is K = A_g + kappa G^T diag(1 / |e|) G, where A_g is the B-bar
+stiffness of the same body with lambda_g = LAMBDA_SPLIT mu, kappa = lambda - lambda_g, and
+G holds the cells' divergence integrals (fem.assemble_divergence: (G u)_e = int_e div u).
+With the cell unknown q_e = kappa |e|^(-1/2) (G u)_e (the cell pressure times |e|^(1/2)),
+K u = f is the mixed system
+
+    [ A_g      Gq^T ] [u]   [f]
+    [ R Gq     -Cq  ] [q] = [0],    Gq = diag(|e|^(-1/2)) G,  R = kappa Cq,
+                                    Cq = diag(|e|^(1/6)),
+
+whose u-block is compressible elasticity (multigrid works on it as at nu = 0.4) and whose
+near-incompressibility is only in the pressure rows. Those rows are scaled (R, Cq) so that
+a residual r_q of them is worth about as much of the condensed system's residual
+(r_u + Gq^T Cq^-1 r_q, Gq^T's entries ~ |e|^(1/6)): a Krylov tolerance on the mixed system
+then means what it means on K (measured: the condensed residual within 2x of the mixed
+one; without the scaling GMRES stops with the constraint far off).
+
+The Newton iteration (coulomb.py) changes the contact rows of [A_g Gq^T] as it changes K's
+and solves the mixed system by GMRES with a Schur-complement fieldsplit (upper
+factorisation): one GAMG cycle on A_g, and on the pressure the diagonal
+S_p = -Cq (1 + kappa / (lambda_g + 2 mu)) in place of S = -Cq - R Gq A_g^-1 Gq^T (a
+pressure mass matrix, as for Stokes). Options under -newton_ (-newton_pc_fieldsplit_*,
+-newton_fieldsplit_u_*, -newton_fieldsplit_p_*); -newton_pressure_split off keeps GMRES on
+K. B-bar is the Q1-P0 element, whose inf-sup constant falls with h, so that the iterations
+still grow as the mesh is refined, but no longer with lambda (runs/results/element.md).
+
+LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto starts B-bar) was the best of 0 ... 60 on
+Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
+iterations at lambda_g / mu = 0, 0.5, 1.5, 4, 10, 25, 60 (GAMG on K alone: no convergence
+in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth of it each.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from . import fem, options
+
+#: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
+LAMBDA_SPLIT = 4.0
+
+#: the Newton iteration's own defaults with a split (the command line wins): tighter
+#: Eisenstat-Walker forcing terms. With the loose 0.1 the friction states of the beam at
+#: nu = 0.4999, Nd = 8 cycle between stick and slip (79 steps and a continuation; 8 with
+#: exact solves, 9 with 0.01)
+NEWTON_DEFAULTS = {"newton_ew_max": "0.01"}
+
+#: the fieldsplit's defaults under the Newton KSP's prefix (the command line wins)
+DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
+            "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg",
+            "fieldsplit_u_pc_gamg_reuse_interpolation": "true", "ksp_gmres_restart": "100",
+            "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"}
+
+
+def _diagonal(comm, values):
+    """A diagonal AIJ Mat on the cells' layout."""
+    n = values.size
+    M = PETSc.Mat().createAIJ(size=((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)),
+                              nnz=(1, 0), comm=comm)
+    d = M.createVecLeft()
+    d.setArray(values)
+    M.setDiagonal(d)
+    d.destroy()
+    M.assemble()
+    return M
+
+
+def _scale_rows(M, values):
+    s = M.createVecLeft()
+    s.setArray(values)
+    M.diagonalScale(L=s)
+    s.destroy()
+
+
+class Split:
+    """A_g, R Gq, Gq^T (clamped rows / columns eliminated as A's), -Cq and S_p of a
+    discretisation (module docstring); M, the mixed operator [[A_g, Gq^T], [R Gq, -Cq]]."""
+
+    def __init__(self, disc, lam, mu):
+        comm = disc.A.getComm()
+        mat = disc.scene["material"]
+        lam_g = LAMBDA_SPLIT * mu
+        self.kappa = lam - lam_g
+        Ag = fem.assemble_stiffness(disc.dm, disc.conn, disc.coords, mat["young"],
+                                    mat["poisson"], frame=disc.frame, element="bbar",
+                                    lam=lam_g)
+        b = Ag.createVecLeft()
+        b.set(0.0)
+        # A_g's own mean diagonal on the eliminated rows (A's, ~ lambda, would be up to
+        # lambda / lambda_g times A_g's and spoil its multigrid); the Newton iteration's
+        # Dirichlet rows of the contact nodes take it too (coulomb.py)
+        self.diag_scale = fem.eliminate_dirichlet(Ag, b, disc.clamped)
+        b.destroy()
+        fem.configure_elasticity(Ag, disc.coordinates, disc.frame)
+        free = Ag.createVecRight()                 # clamped dofs: no divergence, no
+        free.set(1.0)                              # pressure force
+        free.setValues(disc.clamped, np.zeros(len(disc.clamped)))
+        free.assemble()
+        lfree = disc.dm.getLocalVec()
+        disc.dm.globalToLocal(free, lfree)
+        G, vol = fem.assemble_divergence(Ag, disc.conn, disc.coords, disc.frame,
+                                         lfree.getArray(readonly=True).copy())
+        disc.dm.restoreLocalVec(lfree)
+        free.destroy()
+        _scale_rows(G, vol ** -0.5)                # Gq
+        Gt = G.transpose(PETSc.Mat())              # (no argument: in place)
+        cq = vol ** (1.0 / 6.0)
+        _scale_rows(G, self.kappa * cq)            # R Gq
+        self.Ag, self.G, self.Gt, self.vol = Ag, G, Gt, vol
+        self.C = _diagonal(comm, -cq)
+        self.Sp = _diagonal(comm, -cq * (1.0 + self.kappa / (lam_g + 2.0 * mu)))
+        self.M = PETSc.Mat().createNest([[Ag, Gt], [G, self.C]], comm=comm)
+        self.zp, self.p = self.C.createVecLeft(), self.C.createVecLeft()
+        self.zp.set(0.0)
+
+    def condensed(self):
+        """A_g + Gq^T Cq^-1 R Gq = A_g + kappa Gq^T Gq as a new Mat (tests: it is A)."""
+        Gc = self.G.duplicate(copy=True)
+        _scale_rows(Gc, self.vol ** (-1.0 / 6.0))  # Cq^-1 R Gq
+        K = self.Gt.matMult(Gc)
+        K.axpy(1.0, self.Ag, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        Gc.destroy()
+        return K
+
+    def configure(self, ksp, **kw):
+        """Set ksp up on M: the Schur fieldsplit (the defaults inserted, then
+        ksp.setFromOptions, and the pressure block's preconditioner S_p unless the command
+        line names one: -P_pc_fieldsplit_schur_precondition; setting the split's type
+        resets it), then the PC's set-up, when the splits read their options. kw: more
+        option defaults (name without the prefix)."""
+        ksp.setOperators(self.M)
+        pc = ksp.getPC()
+        pc.setType(PETSc.PC.Type.FIELDSPLIT)
+        isu, isp = self.M.getNestISs()[0]
+        pc.setFieldSplitIS(("u", isu), ("p", isp))
+        prefix = ksp.getOptionsPrefix() or ""
+        with options.inserted({prefix + k: v for k, v in {**DEFAULTS, **kw}.items()}):
+            ksp.setFromOptions()
+            if not PETSc.Options().hasName(prefix + "pc_fieldsplit_schur_precondition"):
+                pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
+            pc.setUp()
+
+    def vecs(self, rhs, dx):
+        """Nest vectors [rhs; 0] and [dx; q] (they share rhs's and dx's storage)."""
+        return (PETSc.Vec().createNest([rhs, self.zp], comm=rhs.getComm()),
+                PETSc.Vec().createNest([dx, self.p], comm=dx.getComm()))
+
+    def destroy(self):
+        for o in (self.M, self.Ag, self.G, self.Gt, self.C, self.Sp, self.zp, self.p):
+            o.destroy()
+
+
+def split_for(disc, mode="auto", pc_given=False):
+    """The Split of a discretisation, or None. mode (-newton_pressure_split): auto, a Split
+    for bbar with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
+    Newton steps' preconditioner (pc_given: -newton_pc_type, e.g. lu, is one for K: a
+    nest cannot be factored); off: None."""
+    if mode not in ("auto", "off"):
+        raise ValueError(f"-newton_pressure_split must be auto or off, got {mode!r}")
+    mat = disc.scene["material"]
+    lam, mu = fem.lame(mat["young"], mat["poisson"])
+    if mode == "off" or pc_given or disc.element != "bbar" or lam <= LAMBDA_SPLIT * mu:
+        return None
+    return Split(disc, lam, mu)
