@@ -141,13 +141,12 @@ class CoulombNewton(Loop):
         if not 0.0 < self.linesearch_min <= 1.0:
             raise ValueError(f"-newton_linesearch_min must be in (0, 1], got "
                              f"{self.linesearch_min}")
-        defaults = {self.prefix + "pc_gamg_reuse_interpolation": "true",
-                    self.prefix + "ksp_gmres_restart": "30"}
         if self.split is not None:                # the mixed u-p system (mixed.py)
             self.split.configure(self.ksp)
-            self.pc_setups += 1                   # (A's own preconditioner: the first step's)
+            self.pc_setups += 1                   # (A_g's preconditioner: set up there)
         else:
-            with options.inserted(defaults):
+            with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
+                                   self.prefix + "ksp_gmres_restart": "30"}):
                 multigrid.configure(self.ksp, self.mg)
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:

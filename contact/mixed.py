@@ -1,5 +1,5 @@
 """A nearly incompressible B-bar body's linear solves: its volumetric stiffness split off
-into a cell pressure, so that the Krylov iterations do not grow with lambda / mu.
+into a cell pressure, so that multigrid sees compressible elasticity.
 
 B-bar's stiffness (fem.py) is K = A_g + kappa G^T diag(1 / |e|) G, where A_g is the B-bar
 stiffness of the same body with lambda_g = LAMBDA_SPLIT mu, kappa = lambda - lambda_g, and
@@ -24,8 +24,13 @@ factorisation): one GAMG cycle on A_g, and on the pressure the diagonal
 S_p = -Cq (1 + kappa / (lambda_g + 2 mu)) in place of S = -Cq - R Gq A_g^-1 Gq^T (a
 pressure mass matrix, as for Stokes). Options under -newton_ (-newton_pc_fieldsplit_*,
 -newton_fieldsplit_u_*, -newton_fieldsplit_p_*); -newton_pressure_split off keeps GMRES on
-K. B-bar is the Q1-P0 element, whose inf-sup constant falls with h, so that the iterations
-still grow as the mesh is refined, but no longer with lambda (runs/results/element.md).
+K. It converges where GMRES + GAMG on K does not (nu >= 0.499), with the Newton steps of
+nu = 0.3, but its iterations still grow with lambda / mu (Hertz, nd = 5: 541, 917, 1466 in
+all at nu = 0.49, 0.499, 0.4999; q1 at 0.3: 192; runs/results/element.md). B-bar is the
+Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at nd = 3 without contact,
+the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to 1.6 (89 of 2744
+below 0.1), which the diagonal S_p cannot see; a pressure space stable with Q1 (a
+macro-element pressure, or a quadratic element) would be needed for bounded iterations.
 
 LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto starts B-bar) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
