@@ -1,6 +1,6 @@
 """The solve: what the scene needs, and the paper's three loops nested.
 
-    no contact part   one KSP solve (CG + GAMG)                               `solve_linear`
+    no contact part   one KSP solve (CG + GAMG; bbar, nu > 0.4: mixed.py)    `solve_linear`
     F = 0             Uzawa over the inner solver (no fixed point, no prox)  `solve_contact`
     F > 0             fixed point on g over Uzawa over the inner solver      `solve_contact`
     loading.steps N   N load increments, each the static problem of the increment
@@ -116,10 +116,23 @@ def solve(pr, coarse_start=None):
 
 
 def solve_linear(pr):
+    """K u = b: CG + multigrid / GAMG (-elastic_), or, for a nearly incompressible bbar
+    body, GMRES on the mixed u-p system (mixed.py; -newton_pressure_split, unless
+    -elastic_pc_type is given)."""
     pr.mode = "linear"
-    ksp = fem.elasticity_ksp(pr.A, mg=pr.disc.multigrid)
-    with multigrid.galerkin_options(ksp):
-        ksp.solve(pr.b, pr.x)
+    split = pr.disc.pressure_split(options.get("newton_pressure_split", pr.scene),
+                                   PETSc.Options().hasName("elastic_pc_type"))
+    if split is None:
+        ksp = fem.elasticity_ksp(pr.A, mg=pr.disc.multigrid)
+        with multigrid.galerkin_options(ksp):
+            ksp.solve(pr.b, pr.x)
+    else:
+        ksp = split.linear_ksp()
+        rhs, sol = split.vecs(pr.b, pr.x)
+        split.p.set(0.0)
+        ksp.solve(rhs, sol)
+        rhs.destroy()
+        sol.destroy()
     if ksp.getConvergedReason() < 0:
         raise RuntimeError(f"linear elasticity KSP diverged: reason "
                            f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} its")

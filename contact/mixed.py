@@ -146,6 +146,19 @@ class Split:
                 pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
             pc.setUp()
 
+    def linear_ksp(self, prefix="elastic_", rtol=1e-10):
+        """A KSP for K u = b through M (a scene without contact: fem.elasticity_ksp's
+        place): GMRES, right-preconditioned, the true residual's norm, the split's
+        fieldsplit; options under `prefix`."""
+        ksp = PETSc.KSP().create(comm=self.M.getComm())
+        ksp.setOptionsPrefix(prefix)
+        ksp.setType("gmres")
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
+        self.configure(ksp)
+        return ksp
+
     def vecs(self, rhs, dx):
         """Nest vectors [rhs; 0] and [dx; q] (they share rhs's and dx's storage)."""
         return (PETSc.Vec().createNest([rhs, self.zp], comm=rhs.getComm()),

@@ -154,11 +154,12 @@ REGISTRY = [
            "preconditioner after a linear solve of more than N iterations (and after a "
            "failed one)", "N"),
     Option("newton_pressure_split", "auto", str, "the linear solves of a nearly "
-           "incompressible B-bar body (nu > 0.4): auto, GMRES on the mixed u-p system with "
-           "a Schur fieldsplit (-newton_fieldsplit_u_*, -newton_fieldsplit_p_*, "
+           "incompressible B-bar body (nu > 0.4; the Newton steps', and without contact "
+           "the -elastic_ one): auto, GMRES on the mixed u-p system with a Schur "
+           "fieldsplit (-newton_fieldsplit_u_*, -newton_fieldsplit_p_*, "
            "-newton_pc_fieldsplit_*; -newton_ew_max 0.01), which converges at nu = 0.4999 "
-           "where GAMG on the condensed stiffness does not; off, GMRES on the condensed "
-           "stiffness", "auto|off"),
+           "where GAMG on the condensed stiffness does not; off, the solves of the "
+           "condensed stiffness", "auto|off"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
     Option("newton_watchdog", 3, int, "full Newton steps taken also when the residual "

@@ -13,7 +13,7 @@ mixed.py, -newton_pressure_split):
 """
 import numpy as np
 import pytest
-from conftest import solve
+from conftest import block_scene, gather, solve
 from petsc4py import PETSc
 from test_element import F_VARYING, _bbar_block
 
@@ -131,3 +131,30 @@ def test_default_newton_steps_do_not_grow_with_nu(friction):
             assert "Newton loop did not converge" in str(e)
         else:
             assert pr.inner.iterations > 3 * steps[0.4999], pr.inner.iterations
+
+
+def test_no_contact_solve_closed_form():
+    """A scene without contact (rollers x = 0, y = 0, z = 0, pressed by p on top) at
+    nu = 0.4999: one GMRES solve of the mixed system gives the uniaxial stress field
+    u = p/E (nu x, nu y, -z), in fewer iterations than CG + multigrid on A (measured 33
+    against 162 on 1 rank)."""
+    E, nu, p = 1.0e3, 0.4999, 2.0
+    parts = {"sx": {"plane": ["x", 0.0], "type": "symmetry"},
+             "sy": {"plane": ["y", 0.0], "type": "symmetry"},
+             "sz": {"plane": ["z", 0.0], "type": "symmetry"},
+             "top": {"plane": ["z", 1.0], "type": "traction", "traction": [0.0, 0.0, -p]}}
+    its = {}
+    for mode in ("auto", "off"):
+        sc = block_scene(parts, nd=4, young=E, poisson=nu, size=(1.5, 1.0, 1.0),
+                         mode="newton")
+        sc["mesh"]["element"] = "bbar"
+        with options.inserted({"newton_pressure_split": mode}):
+            pr = solve(sc)
+        assert pr.mode == "linear"
+        assert (pr.disc.pressure_split(mode) is not None) == (mode == "auto")
+        X, U = gather(pr)[:2]
+        x, y, z = X.T
+        exact = p / E * np.c_[nu * x, nu * y, -z]
+        assert np.abs(U - exact).max() <= 1e-8 * np.abs(exact).max()
+        its[mode] = pr.ksp_iterations
+    assert its["auto"] < its["off"], its
