@@ -23,7 +23,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import multigrid
+from . import multigrid, options
 from .mesh import HEX_REF, MeshError
 
 _G = 1.0 / np.sqrt(3.0)
@@ -146,15 +146,90 @@ def nodal_face_weights(faces, coords):
     return w
 
 
+#: rows of the matrix pattern counted at a time (create_matrix): ~64 x this many pairs
+PATTERN_CHUNK = 1 << 16
+
+
+def _aij_family(mat_type):
+    t = (mat_type or "aij").lower()
+    return "aij" in t and "baij" not in t
+
+
+def create_matrix(dm, conn):
+    """An empty AIJ matrix (block size 3, the DM's local-to-global map, the DM's Mat type:
+    -dm_mat_type / -mat_type) preallocated exactly for the Q1 pattern of the cells conn
+    (n, 8) (two nodes couple when they share a cell), in place of dm.createMat(), whose
+    DMPlex preallocation walks the mesh topology: 1.48 s against 0.42 s at Nd = 40 on 2
+    ranks, the same matrix. Each rank lists the distinct (row, column) node pairs of its
+    cells, in bounded chunks of rows; the pairs of rows it does not own go to their
+    owners, which count a row's distinct columns over its own pairs and those received. A
+    Mat type outside the AIJ family (BAIJ, ...) gets the DM's own matrix."""
+    mat_type = options.requested_type("mat_type")
+    if not _aij_family(mat_type):
+        return dm.createMat()
+    comm = dm.getComm()
+    mpi = comm.tompi4py()
+    lg = dm.getLGMap()
+    lgb = np.asarray(lg.getBlockIndices(), dtype=np.int64)       # local -> global node
+    g = dm.getGlobalVec()
+    r0, r1 = (v // 3 for v in g.getOwnershipRange())
+    n_global = g.getSize() // 3
+    dm.restoreGlobalVec(g)
+    starts = np.array(mpi.allgather(r0), dtype=np.int64)
+    nn = lgb.size
+    flat = conn.ravel().astype(np.int64)
+    order = np.argsort(flat, kind="stable")                       # node -> its cells
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=nn))])
+
+    def pairs(rows):
+        """The distinct (global row, global column) pairs of local rows, as keys
+        row * n_global + column (sorted)."""
+        lens = ptr[rows + 1] - ptr[rows]
+        at = order[np.repeat(ptr[rows] - np.cumsum(lens) + lens, lens) + np.arange(lens.sum())]
+        return np.unique(lgb[flat[at]][:, None] * n_global + lgb[conn[at // 8]])
+
+    def add(keys):
+        ga, gb = keys // n_global, keys % n_global
+        np.add.at(count, (ga - r0, np.where((gb >= r0) & (gb < r1), 0, 1)), 1)
+
+    count = np.zeros((r1 - r0, 2), dtype=np.int64)                # (diagonal, off) block
+    send = [[] for _ in range(mpi.size)]
+    for k0 in range(0, nn, PATTERN_CHUNK):
+        keys = pairs(np.arange(k0, min(nn, k0 + PATTERN_CHUNK)))
+        ga = keys // n_global
+        own = (ga >= r0) & (ga < r1)
+        add(keys[own])
+        owner = np.searchsorted(starts, ga[~own], side="right") - 1
+        for p in np.unique(owner):                                # (ranks, not nodes)
+            send[p].append(keys[~own][owner == p])
+    got = np.concatenate(mpi.alltoall([np.concatenate(k) if k else np.zeros(0, np.int64)
+                                       for k in send]))
+    if got.size:                     # rows that other ranks' cells reach: counted anew
+        rows = np.unique(got // n_global)
+        local = np.zeros(r1 - r0, dtype=np.int64)
+        mine = (lgb >= r0) & (lgb < r1)
+        local[lgb[mine] - r0] = np.flatnonzero(mine)
+        count[rows - r0] = 0
+        add(np.union1d(pairs(local[rows - r0]), got))
+    d, o = (np.repeat(3 * count[:, k], 3).astype(PETSc.IntType) for k in range(2))
+    A = PETSc.Mat().create(comm=comm)
+    n_own = r1 - r0
+    A.setSizes(((3 * n_own, 3 * n_global), (3 * n_own, 3 * n_global)), bsize=3)
+    A.setType(mat_type or PETSc.Mat.Type.AIJ)
+    A.setPreallocationNNZ((d, o))
+    A.setLGMap(lg, lg)
+    return A
+
+
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
                        lam=None):
-    """Global stiffness matrix A (AIJ from the DM, block size 3) of `element` (ELEMENTS),
+    """Global stiffness matrix A (AIJ, block size 3: create_matrix) of `element` (ELEMENTS),
     unconstrained; in the basis of a contact frame (contact/frame.py: T^T A T) when one is
     given. lam: Lame's lambda instead of that of (young, poisson) (a split of the
     volumetric stiffness, mixed.py)."""
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
-    A = dm.createMat()           # createMatrix is gone in petsc4py >= 3.20
+    A = create_matrix(dm, conn)
     if A.getBlockSize() != 3:
         A.setBlockSize(3)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)

@@ -116,12 +116,10 @@ class MeshHierarchy:
     @staticmethod
     def _typed(dm):
         """The Vec and Mat types of -dm_vec_type / -vec_type, -dm_mat_type / -mat_type."""
-        opts = PETSc.Options()
         for kind, setter in (("vec_type", dm.setVecType), ("mat_type", dm.setMatType)):
-            for name in ("dm_" + kind, kind):
-                if opts.hasName(name):
-                    setter(opts.getString(name))
-                    break
+            t = options.requested_type(kind)
+            if t is not None:
+                setter(t)
         return dm
 
     @property

@@ -240,6 +240,16 @@ def get(name, scene=None, opts=None):
     return opts.getString(name, value if value is not None else "")
 
 
+def requested_type(kind, opts=None):
+    """The Vec or Mat type the command line asks for (kind "vec_type" or "mat_type":
+    -dm_vec_type, else -vec_type; -dm_mat_type, else -mat_type), or None."""
+    opts = opts or PETSc.Options()
+    for name in ("dm_" + kind, kind):
+        if opts.hasName(name):
+            return opts.getString(name)
+    return None
+
+
 @contextlib.contextmanager
 def inserted(values):
     """Insert the options `values` ({name: text}) not given by the user, for the block only."""
