@@ -148,6 +148,8 @@ def nodal_face_weights(faces, coords):
 
 #: rows of the matrix pattern counted at a time (create_matrix): ~64 x this many pairs
 PATTERN_CHUNK = 1 << 16
+_EV_PREALLOC = PETSc.Log.Event("Preallocate A")
+_EV_ASSEMBLE = PETSc.Log.Event("Assemble A")
 
 
 def _aij_family(mat_type):
@@ -167,6 +169,14 @@ def create_matrix(dm, conn):
     mat_type = options.requested_type("mat_type")
     if not _aij_family(mat_type):
         return dm.createMat()
+    _EV_PREALLOC.begin()
+    try:
+        return _preallocated(dm, conn, mat_type)
+    finally:
+        _EV_PREALLOC.end()
+
+
+def _preallocated(dm, conn, mat_type):
     comm = dm.getComm()
     mpi = comm.tompi4py()
     lg = dm.getLGMap()
@@ -234,6 +244,7 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         A.setBlockSize(3)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     idx_type = PETSc.IntType
+    _EV_ASSEMBLE.begin()
     for s in range(0, conn.shape[0], CHUNK):
         c = conn[s:s + CHUNK]
         Ke = element_stiffness(coords[c], lam, mu, element)
@@ -242,6 +253,7 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
                                    Ke.reshape(c.shape[0], -1), addv=PETSc.InsertMode.ADD_VALUES)
     A.assemble()
+    _EV_ASSEMBLE.end()
     return A
 
 
