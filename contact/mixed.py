@@ -51,7 +51,7 @@ LAMBDA_SPLIT = 4.0
 #: exact solves, 9 with 0.01)
 NEWTON_DEFAULTS = {"newton_ew_max": "0.01"}
 
-#: the fieldsplit's defaults under the Newton KSP's prefix (the command line wins)
+#: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
 DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
             "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg",
             "fieldsplit_u_pc_gamg_reuse_interpolation": "true", "ksp_gmres_restart": "100",
