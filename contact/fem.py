@@ -24,7 +24,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import multigrid, options
-from .mesh import HEX_REF, MeshError
+from .mesh import HEX_REF, MeshError, cross3
 
 _G = 1.0 / np.sqrt(3.0)
 _GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
@@ -66,18 +66,24 @@ def _hex_shape_values():
 
 
 _DN = _hex_shape_grads()
+_DNT = np.ascontiguousarray(_DN.transpose(0, 2, 1))    # (g, 3, a)
 _N = _hex_shape_values()
 
 
 def _geometry(X):
-    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, 8, 3)."""
-    J = np.einsum("gai,caj->cgij", _DN, X)            # J_ij = dx_j / dxi_i
-    det = np.linalg.det(J)
+    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, 8, 3).
+    J^-1 by its rows' cross products (columns r1 x r2, r2 x r0, r0 x r1 over det J), and
+    matmul, not einsum: 3.5x faster than einsum with numpy.linalg's batched det and solve
+    (4096 distorted cells: 0.024 s against 0.085 s)."""
+    J = np.matmul(_DNT[None], X[:, None])               # J_ij = dx_j / dxi_i (c, g, 3, 3)
+    r0, r1, r2 = J[..., 0, :], J[..., 1, :], J[..., 2, :]
+    c12 = cross3(r1, r2)
+    det = (r0 * c12).sum(axis=-1)
     if np.any(det <= 0.0):
         bad = int(np.argmin(det.min(axis=1)))
         raise MeshError(f"inverted or degenerate hexahedron (local cell {bad}, det J = {det.min():.3e})")
-    dNdx = np.linalg.solve(J[:, :, None, :, :], _DN[None, :, :, :, None])[..., 0]
-    return dNdx, det
+    inv_t = np.stack([c12, cross3(r2, r0), cross3(r0, r1)], axis=-2) / det[..., None, None]
+    return np.matmul(_DN[None], inv_t), det            # dN/dx = J^-1 dN/dxi
 
 
 def element_stiffness(X, lam, mu, element="q1"):
@@ -102,6 +108,9 @@ def _element_stiffness(X, lam, mu, element):
     if element not in ELEMENTS:
         raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
     dNdx, wdet = _geometry(X)
+    # (matmul would be 6x faster than these einsums, but it sums in another order, and
+    # that round-off turned the fast mode's SSN system of tests/test_frame.py::
+    # test_symmetry_plane_containing_the_normal indefinite for CG on 2 ranks)
     if element == "q1":
         K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
     else:                     # bbar: -2 mu / 3 (div)(div) pointwise + kappa |e| div_e div_e

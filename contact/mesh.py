@@ -68,23 +68,43 @@ def read_mesh_file(comm, path):
     return dm
 
 
-def check_cells(comm, conn, coords):
-    """MeshError when a cell is inverted or degenerate: det of the Jacobian of the
-    trilinear map <= 0 at one of its 8 corners (vertices out of PETSc's order, too)."""
-    X = coords[conn]                                              # (nc, 8, 3)
-    xi = HEX_REF                                                  # corners (a, 3)
-    f = 1.0 + HEX_REF[None, :, :] * xi[:, None, :]                # (a, b, 3)
+def cross3(a, b):
+    """a x b over the last axis (3), by components (np.cross is slower on small axes)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _corner_gradients():
+    """dN_b/dxi_k at the 8 corners a: (a, b, 3)."""
+    f = 1.0 + HEX_REF[None, :, :] * HEX_REF[:, None, :]           # (a, b, 3)
     G = np.empty((8, 8, 3))
     for k in range(3):
         G[:, :, k] = HEX_REF[None, :, k] * np.prod(np.delete(f, k, axis=2), axis=2) / 8.0
-    J = np.einsum("cbi,abk->caik", X, G)                          # (nc, a, 3, 3)
-    det = np.linalg.det(J) if conn.shape[0] else np.zeros((0, 8))
-    h3 = np.ptp(X, axis=1).prod(axis=1) if conn.shape[0] else np.zeros(0)
-    bad = np.flatnonzero(np.any(det <= 1e-12 * h3[:, None], axis=1))
+    return G
+
+
+_G_CORNERS = _corner_gradients()
+#: cells checked at a time (check_cells)
+CHECK_CHUNK = 1 << 14
+
+
+def check_cells(comm, conn, coords):
+    """MeshError when a cell is inverted or degenerate: det of the Jacobian of the
+    trilinear map <= 0 at one of its 8 corners (vertices out of PETSc's order, too)."""
+    bad = []
+    for s in range(0, conn.shape[0], CHECK_CHUNK):
+        X = coords[conn[s:s + CHECK_CHUNK]]                       # (c, 8, 3)
+        J = np.matmul(X.transpose(0, 2, 1)[:, None], _G_CORNERS[None])   # (c, a, 3, 3)
+        det = (J[..., 0, :] * cross3(J[..., 1, :], J[..., 2, :])).sum(axis=-1)
+        h3 = np.ptp(X, axis=1).prod(axis=1)
+        bad.append(s + np.flatnonzero(np.any(det <= 1e-12 * h3[:, None], axis=1)))
+    bad = np.concatenate(bad) if bad else np.zeros(0, dtype=int)
+    X = coords[conn[bad[:1]]] if bad.size else None
     mpi = comm.tompi4py()
     count = mpi.allreduce(int(bad.size))
     if count:
-        where = mpi.allgather(X[bad[0]].mean(axis=0) if bad.size else None)
+        where = mpi.allgather(X[0].mean(axis=0) if bad.size else None)
         c = next(w for w in where if w is not None)
         raise MeshError(f"{count} inverted or degenerate cells (det J <= 0 at a corner), "
                         f"the first centred at ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})")

@@ -52,7 +52,9 @@ def cell_stress(X, U, lam, mu):
     displacements U (c, 8, 3): the 2x2x2 Gauss values averaged with weights |J| w."""
     dNdx, wdet = fem._geometry(X)
     vol = wdet.sum(axis=1)
-    H = np.einsum("cai,cgaj,cg->cij", U, dNdx, wdet) / vol[:, None, None]   # mean grad u
+    g = np.matmul(wdet[:, None, :], dNdx.reshape(X.shape[0], 8, 24)).reshape(-1, 8, 3)
+    H = np.matmul(U.transpose(0, 2, 1), g) / vol[:, None, None]   # mean grad u (matmul:
+    # einsum is ~10x slower)
     eps = 0.5 * (H + H.transpose(0, 2, 1))
     sig = 2.0 * mu * eps
     sig[:, [0, 1, 2], [0, 1, 2]] += lam * np.trace(eps, axis1=1, axis2=2)[:, None]
@@ -98,9 +100,9 @@ def body_stress(problem, u=None):
     for a in range(0, nc, fem.CHUNK):
         c = conn[a:a + fem.CHUNK]
         s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
-    acc = np.zeros((coords.shape[0], 7))
-    np.add.at(acc, conn.ravel(), np.repeat(np.column_stack([s * vol[:, None], vol]), 8,
-                                           axis=0))
+    vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes
+    acc = np.column_stack([np.bincount(conn.ravel(), weights=np.repeat(vals[:, k], 8),
+                                       minlength=coords.shape[0]) for k in range(7)])
     tot = owned_sum(dm, acc)
     nodal = tot[:, :6] / np.maximum(tot[:, 6:], 1e-300)
     return {"cell": s, "cell_von_mises": von_mises(s), "volume": vol,
