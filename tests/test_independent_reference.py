@@ -197,22 +197,30 @@ def pressed_block(nu, nd, E=1.0e3, p=2.0, **solver):
     return block_scene(parts, nd=nd, young=E, poisson=nu, size=(1.5, 1.0, 1.0), **solver)
 
 
+def uniaxial(xyz, nu, E=1.0e3, p=2.0):
+    """The pressed block's displacement u = p/E (nu x, nu y, -z) at points xyz (n, 3)."""
+    x, y, z = np.asarray(xyz).T
+    return p / E * np.c_[nu * x, nu * y, -z]
+
+
+def check_pressed_block(pr, nu, E, p, tol):
+    """The package's solution pr of pressed_block against the closed form: displacement
+    and the pressure p at every contact node, to tol."""
+    X, U = gather(pr)[:2]
+    assert _rel(U, uniaxial(X, nu, E, p)) < tol
+    L = pr.cs.local_array(pr.l)
+    assert np.all(np.abs(L - p) <= tol * p)
+
+
 def test_uniform_compression_closed_form():
     """Frictionless block on the foundation pressed by p, rollers x=0 and y=0: uniaxial
     stress, pressure p at every contact node, u = p/E (nu x, nu y, -z). Both codes."""
     E, nu, p = 1.0e3, 0.3, 2.0
     sc = pressed_block(nu, 2, E, p, **TIGHT_SSN)
     ref = _reference(sc)
-    x, y, z = ref["xyz"].T
-    exact = p / E * np.c_[nu * x, nu * y, -z]
-    assert _rel(ref["u"], exact) < 1e-10
+    assert _rel(ref["u"], uniaxial(ref["xyz"], nu, E, p)) < 1e-10
     assert _rel(ref["pressure"], np.full(ref["pressure"].size, p)) < 1e-10
-    pr = solve(sc)
-    X, U = gather(pr)[:2]
-    x, y, z = X.T
-    assert _rel(U, p / E * np.c_[nu * x, nu * y, -z]) < 1e-10
-    L = pr.cs.local_array(pr.l)
-    assert np.all(np.abs(L - p) <= 1e-10 * p)
+    check_pressed_block(solve(sc), nu, E, p, 1e-10)
 
 
 # ---------------------------------------------------------- package vs reference
