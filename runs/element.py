@@ -165,6 +165,15 @@ def f3(x):
     return "–" if x is None else f"{x:.3f}"
 
 
+def md_row(*cells):
+    return "| " + " | ".join(str(c) for c in cells) + " |"
+
+
+def failed_row(head, r, dashes, tail=()):
+    """A table row for a run that failed: head cells, the error, dashes, its time, tail."""
+    return md_row(*head, f"failed: {r['error']}", *["–"] * dashes, f"{r['time']:.1f}", *tail)
+
+
 def write(path, hz, bm, pb, sv, nd, args, elapsed):
     L = ["# Elements against volumetric locking (`-element q1 | bbar`)", ""]
     L += harness.provenance_lines(1, argv=args)
@@ -177,13 +186,10 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed):
           "| nu | element | linear solves | force / Hertz | radius / Hertz | peak / Hertz | "
           "Newton steps | Krylov its | time, s |", "|---|---|---|---|---|---|---|---|---|"]
     for r in hz:
-        if r["error"]:
-            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | failed: {r['error']} "
-                     f"| – | – | – | – | {r['time']:.1f} |")
-        else:
-            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {f3(r['force'])} | "
-                     f"{f3(r['radius'])} | {f3(r['peak'])} | {r['newton']} | {r['ksp']} | "
-                     f"{r['time']:.1f} |")
+        head = (r["nu"], r["element"], r["solver"])
+        L.append(failed_row(head, r, 4) if r["error"] else
+                 md_row(*head, f3(r["force"]), f3(r["radius"]), f3(r["peak"]), r["newton"],
+                        r["ksp"], f"{r['time']:.1f}"))
     L += ["", "## The paper's beam: max |u| over Nd", ""]
     lim = {}
     for nu in (0.3, 0.4999):
@@ -193,14 +199,14 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed):
     L += ["| nu | element | linear solves | Nd | dofs | max abs(u) | / bbar's limit | "
           "Newton steps | Krylov its | time, s |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in bm:
+        head = (r["nu"], r["element"], r["solver"], r["nd"])
         if r["error"]:
-            L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {r['nd']} | – | failed: "
-                     f"{r['error']} | – | – | – | {r['time']:.1f} |")
+            L.append(failed_row(head + ("–",), r, 3))
             continue
         q = lim.get(r["nu"])
-        L.append(f"| {r['nu']} | {r['element']} | {r['solver']} | {r['nd']} | {r['dofs']} | "
-                 f"{r['umax']:.5e} | {f3(r['umax'] / q['value']) if q else '–'} | "
-                 f"{r['newton']} | {r['ksp']} | {r['time']:.1f} |")
+        L.append(md_row(*head, r["dofs"], f"{r['umax']:.5e}",
+                        f3(r["umax"] / q["value"]) if q else "–", r["newton"], r["ksp"],
+                        f"{r['time']:.1f}"))
     for nu, q in lim.items():
         L.append(f"\nnu = {nu}: bbar's max |u| limit {q['value']:.5e} ± {q['error']:.1e} "
                  f"({q['method']}).")
@@ -217,13 +223,11 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed):
               "| nu | element | split | Newton steps | Krylov its | its / q1's at 0.3 | "
               "time, s | time / q1's | -newton_rtol |", "|---|---|---|---|---|---|---|---|---|"]
         for r in sv:
-            if r["error"]:
-                L.append(f"| {r['nu']} | {r['element']} | {r['split']} | failed: "
-                         f"{r['error']} | – | – | {r['time']:.1f} | – | {r['rtol']} |")
-                continue
-            L.append(f"| {r['nu']} | {r['element']} | {r['split']} | {r['newton']} | "
-                     f"{r['ksp']} | {r['ksp'] / base['ksp']:.1f} | {r['time']:.1f} | "
-                     f"{r['time'] / base['time']:.1f} | {r['rtol']} |")
+            head = (r["nu"], r["element"], r["split"])
+            L.append(failed_row(head, r, 2, ("–", r["rtol"])) if r["error"] else
+                     md_row(*head, r["newton"], r["ksp"], f"{r['ksp'] / base['ksp']:.1f}",
+                            f"{r['time']:.1f}", f"{r['time'] / base['time']:.1f}",
+                            r["rtol"]))
     rows, q = pb
     if rows:
         L += ["", "## The paper's beam as it is (nu = 0.277): error against time", "",
