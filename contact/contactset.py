@@ -3,7 +3,7 @@
 Contact nodes j in P: the vertices of the contact faces whose normal dof is not clamped.
 For each, the lumped weight w_j = int_{Gamma_c} N_j ds over the actual (bilinear) faces,
 so curved and graded faces integrate correctly (on a uniform flat face this is the
-paper's trapezoidal rule), the friction coefficient F_j, the initial gap gap_j, and the
+paper's trapezoidal rule; q2: the Gauss-Lobatto weights of the 9-node faces, fem.py), the friction coefficient F_j, the initial gap gap_j, and the
 dofs of its normal and tangential components.
 
 The foundation is the half-space {(X - p) . n <= 0} behind the plane through p with unit
@@ -52,7 +52,7 @@ class ContactSet:
     """Contact nodes, weights w, friction F and the scatters to contact space."""
 
     def __init__(self, dm, coords, faces, clamped_rows, friction, template,
-                 normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None):
+                 normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None, roles=None):
         comm = dm.getComm()
         self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
         axis = axis_of(self.normal)
@@ -66,7 +66,7 @@ class ContactSet:
         loc = np.zeros((nv, 3))
         if faces.shape[0]:
             loc[np.unique(faces.ravel()), 0] = 1.0
-        loc[:, 2] = fem.nodal_face_weights(faces, coords)
+        loc[:, 2] = fem.nodal_face_weights(faces, coords, roles)      # roles: q2
         g = fem.local_to_global(dm, loc.ravel())
         owned = g.getArray(readonly=True).reshape(-1, 3).copy()
         rstart = g.getOwnershipRange()[0]

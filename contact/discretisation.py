@@ -28,7 +28,8 @@ RHO_LAMBDA_CAP = 1.5
 
 def element_of(scene):
     """The element of a run (fem.ELEMENTS): -element (or the scene's mesh.element); auto:
-    q1 in the paper's faithful mode, else bbar where nu >= AUTO_BBAR_NU, else q1."""
+    q1 in the paper's faithful mode, else bbar where nu >= AUTO_BBAR_NU, else q1. (q2's
+    mesh hierarchy is built for its nodes: problem.py asks here first.)"""
     el = options.get("element", scene)
     if el == "auto":
         faithful = options.get("solver_mode", scene) == "faithful"
@@ -54,7 +55,12 @@ class Discretisation:
             if group not in self.physical_names:
                 raise SceneError(f"boundary part {name!r}: the mesh has no physical surface "
                                  f"{group!r} (it has: {', '.join(self.physical_names) or 'none'})")
-            faces = mesh.labelled_faces(self.dm, conn, "physical:" + group)
+            if self.quadratic is not None:   # marked on the element mesh: its refined faces
+                coarse = self.hierarchy.levels[self.level_index - 1].dm
+                faces = self.quadratic.refined_faces(
+                    *mesh.labelled_cell_faces(coarse, "physical:" + group))
+            else:
+                faces = mesh.labelled_faces(self.dm, conn, "physical:" + group)
             where = f"the physical surface {group!r}"
         else:
             axis, value = part["plane"]
@@ -90,13 +96,25 @@ class Discretisation:
         self.partitioner = self.hierarchy.partitioner
         self.physical_names = self.hierarchy.physical_names
         mesh.check_cells(comm, conn, coords)
+        self.element = element_of(sc)
+        #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
+        #: this level's vertices, the faces' node roles, each cell's eighth of its element)
+        self.quadratic = self.roles = None
+        self.elements = conn
+        if self.element == "q2":
+            if not self.hierarchy.quadratic:
+                raise SceneError("-element q2 needs the mesh hierarchy built for it "
+                                 "(MeshHierarchy(..., quadratic=True))")
+            self.quadratic = self.hierarchy.quadratic_cells(self.level_index)
+            self.elements, self.roles = self.quadratic.conn, self.quadratic.roles
+            self.nd = self.quadratic.nd              # the element mesh's
 
         self._parts()
         self._contact_set()
         mat = sc["material"]
-        self.element = element_of(sc)
-        self.A = fem.assemble_stiffness(dm, conn, self.coords, mat["young"], mat["poisson"],
-                                        frame=self.frame, element=self.element)
+        self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
+                                        mat["poisson"], frame=self.frame,
+                                        element=self.element)
         self._loads()
         self.contact_diagonal = self._contact_diagonal()
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
@@ -125,7 +143,7 @@ class Discretisation:
         lam, mu = fem.lame(mat["young"], mat["poisson"])
         if self.element != "bbar" or lam <= RHO_LAMBDA_CAP * mu:
             return None
-        return fem.assemble_diagonal(self.dm, self.conn, self.coords, RHO_LAMBDA_CAP * mu,
+        return fem.assemble_diagonal(self.dm, self.elements, self.coords, RHO_LAMBDA_CAP * mu,
                                      mu, self.frame, self.element)
 
     def _parts(self):
@@ -166,7 +184,8 @@ class Discretisation:
         rstart = template.getOwnershipRange()[0]
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template, normal=self.normal,
-                             point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"))
+                             point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"),
+                             roles=self.roles)
         template.destroy()
         if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
             self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])
@@ -177,7 +196,7 @@ class Discretisation:
         with its load b_g = f_g - A u_D,g (u_D,g: u_D with the other groups' values set to
         0, so that sum_g u_D,g = u_D); b = sum_g b_g is the full load. The clamped rows are
         eliminated from A, b and every b_g."""
-        sc, dm, conn, coords = self.scene, self.dm, self.conn, self.coords
+        sc, dm, coords = self.scene, self.dm, self.coords
         bnd, named = sc["boundary"], self.constraints
         nonzero = lambda cons: any(np.any(np.asarray(c[2], dtype=float) != 0.0)  # noqa: E731
                                    for _, c in cons)
@@ -193,10 +212,11 @@ class Discretisation:
         self.load_groups = []
         for ramp in ramps:
             mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
-            bg = fem.load_vector(dm, conn, coords,
+            bg = fem.load_vector(dm, self.elements, coords,
                                  [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
                                   if bnd[n]["type"] == "traction"],
-                                 body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0])
+                                 body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0],
+                                 self.roles)
             self.to_frame(bg)
             masked = [(n, (f, c, v if n in mine else [0.0] * 3)) for n, (f, c, v) in named]
             if nonzero(masked):

@@ -18,6 +18,14 @@ Elements (-element, ELEMENTS):
         test holds as for q1; the cell-mean stress is the same formula of the cell-mean
         strain (stress.py needs nothing else). Contact weights (face integrals) are those
         of q1: positive.
+  q2    the 27-node (triquadratic Lagrange) hexahedron, isoparametric, 3x3x3 Gauss: its
+        nodes are the vertices of the once-refined mesh (hierarchy.py), the element the
+        parent cell of 8 refined cells (element connectivity (ne, 27) in Q2_REF order).
+        Face integrals on a 9-node face by the Gauss-Lobatto (Simpson) product rule, exact
+        for planar faces: the lumped weights 1/36, 4/36, 16/36 of a flat face's area at
+        its corner, edge and centre nodes, positive (contact weights, tractions). The
+        faces are handed as the refined mesh's quadrilaterals, each node with its role
+        (0 corner, 1 edge midpoint, 2 face centre of its element's face).
 """
 import numpy as np
 from mpi4py import MPI
@@ -34,11 +42,19 @@ _QUAD_REF = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
 #: -element values and what they are (module docstring)
 ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
             "bbar": "trilinear hexahedron with the cell-mean volumetric strain (B-bar = Q1-P0 "
-                    "u-p condensed): no volumetric locking as nu -> 0.5"}
+                    "u-p condensed): no volumetric locking as nu -> 0.5",
+            "q2": "27-node triquadratic hexahedron, 3x3x3 Gauss, on the once-refined mesh's "
+                  "vertices: the same accuracy with far fewer unknowns"}
 
 #: cells per chunk when computing element matrices (bounds the temporaries: the element
 #: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
 CHUNK = 4096
+
+
+def chunk(conn):
+    """Cells per chunk for cells of conn's node count: CHUNK for 8 nodes, CHUNK / 8 for
+    27 (a q2 element matrix is 11.4 times a q1 one)."""
+    return CHUNK if conn.shape[1] == 8 else CHUNK // 8
 
 
 def lame(young, poisson):
@@ -68,14 +84,57 @@ def _hex_shape_values():
 _DN = _hex_shape_grads()
 _DNT = np.ascontiguousarray(_DN.transpose(0, 2, 1))    # (g, 3, a)
 _N = _hex_shape_values()
+_W8 = np.ones(8)
+
+#: the 27 nodes of the quadratic hexahedron (q2): reference coordinates, node
+#: 9 i + 3 j + k at (xi, eta, zeta) = (i - 1, j - 1, k - 1)
+Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],
+                  dtype=float)
+#: a q2 node's role on a face: the number of its zero reference coordinates (0 corner,
+#: 1 edge midpoint, 2 face centre, 3 the cell centre)
+Q2_ROLE = np.count_nonzero(Q2_REF == 0.0, axis=1)
 
 
-def _geometry(X):
-    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, 8, 3).
+def _lagrange2(t):
+    """1D quadratic Lagrange functions at nodes -1, 0, 1 and their derivatives at t (n,):
+    (n, 3), (n, 3)."""
+    t = np.asarray(t, dtype=float)[:, None]
+    L = np.hstack([0.5 * t * (t - 1.0), 1.0 - t * t, 0.5 * t * (t + 1.0)])
+    dL = np.hstack([t - 0.5, -2.0 * t, t + 0.5])
+    return L, dL
+
+
+def q2_shape(xi):
+    """N (g, 27) and dN/dxi (g, 27, 3) of the 27-node hexahedron at points xi (g, 3)."""
+    (Lx, dLx), (Ly, dLy), (Lz, dLz) = (_lagrange2(xi[:, k]) for k in range(3))
+    i, j, k = (Q2_REF + 1).astype(int).T
+    N = Lx[:, i] * Ly[:, j] * Lz[:, k]
+    dN = np.stack([dLx[:, i] * Ly[:, j] * Lz[:, k], Lx[:, i] * dLy[:, j] * Lz[:, k],
+                   Lx[:, i] * Ly[:, j] * dLz[:, k]], axis=2)
+    return N, dN
+
+
+_G3 = np.sqrt(0.6)
+_GP27 = np.array([[a, b, c] for a in (-_G3, 0, _G3) for b in (-_G3, 0, _G3)
+                  for c in (-_G3, 0, _G3)])
+_W27 = np.prod(np.where(_GP27 == 0.0, 8.0 / 9.0, 5.0 / 9.0), axis=1)
+_N27, _DN27 = q2_shape(_GP27)
+_DNT27 = np.ascontiguousarray(_DN27.transpose(0, 2, 1))
+
+#: nodes per element, and its quadrature: (N, dN/dxi, dN/dxi transposed, weights)
+NODES = {"q1": 8, "bbar": 8, "q2": 27}
+_RULES = {8: (_N, _DN, _DNT, _W8), 27: (_N27, _DN27, _DNT27, _W27)}
+
+
+def _geometry(X, rule=None):
+    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, a, 3) of 8
+    (q1) or 27 (q2) nodes, at the element's Gauss points (rule: (dN, dN^T, w), default
+    that of X's node count).
     J^-1 by its rows' cross products (columns r1 x r2, r2 x r0, r0 x r1 over det J), and
     matmul, not einsum: 3.5x faster than einsum with numpy.linalg's batched det and solve
     (4096 distorted cells: 0.024 s against 0.085 s)."""
-    J = np.matmul(_DNT[None], X[:, None])               # J_ij = dx_j / dxi_i (c, g, 3, 3)
+    dn, dnt, w = rule if rule is not None else _RULES[X.shape[1]][1:]
+    J = np.matmul(dnt[None], X[:, None])                # J_ij = dx_j / dxi_i (c, g, 3, 3)
     r0, r1, r2 = J[..., 0, :], J[..., 1, :], J[..., 2, :]
     c12 = cross3(r1, r2)
     det = (r0 * c12).sum(axis=-1)
@@ -83,11 +142,12 @@ def _geometry(X):
         bad = int(np.argmin(det.min(axis=1)))
         raise MeshError(f"inverted or degenerate hexahedron (local cell {bad}, det J = {det.min():.3e})")
     inv_t = np.stack([c12, cross3(r2, r0), cross3(r0, r1)], axis=-2) / det[..., None, None]
-    return np.matmul(_DN[None], inv_t), det            # dN/dx = J^-1 dN/dxi
+    return np.matmul(dn[None], inv_t), det * w          # dN/dx = J^-1 dN/dxi
 
 
 def element_stiffness(X, lam, mu, element="q1"):
-    """Element stiffness matrices K_e (c, 24, 24) of `element` (ELEMENTS), dof order 3 a + i.
+    """Element stiffness matrices K_e (c, 3 a, 3 a) of `element` (ELEMENTS) for cells X
+    (c, a, 3) (a = NODES[element]), dof order 3 a + i.
 
     K_e depends on the cell's shape only (not on where it lies): cells whose vertices,
     taken relative to their first vertex, agree to 1e-12 of the largest cell extent share
@@ -107,11 +167,14 @@ def element_stiffness(X, lam, mu, element="q1"):
 def _element_stiffness(X, lam, mu, element):
     if element not in ELEMENTS:
         raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
+    if X.shape[1] != NODES[element]:
+        raise ValueError(f"element {element} has {NODES[element]} nodes, got cells of "
+                         f"{X.shape[1]}")
     dNdx, wdet = _geometry(X)
     # (matmul would be 6x faster than these einsums, but it sums in another order, and
     # that round-off turned the fast mode's SSN system of tests/test_frame.py::
     # test_symmetry_plane_containing_the_normal indefinite for CG on 2 ranks)
-    if element == "q1":
+    if element != "bbar":
         K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
     else:                     # bbar: -2 mu / 3 (div)(div) pointwise + kappa |e| div_e div_e
         K = (-2.0 * mu / 3.0) * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
@@ -123,13 +186,14 @@ def _element_stiffness(X, lam, mu, element):
     K[:, :, 0, :, 0] += lap
     K[:, :, 1, :, 1] += lap
     K[:, :, 2, :, 2] += lap
-    return K.reshape(-1, 24, 24)
+    n = 3 * X.shape[1]
+    return K.reshape(-1, n, n)
 
 
 def element_volume_weights(X):
-    """int_e N_a dx for cells X: (c, 8)."""
+    """int_e N_a dx for cells X (c, a, 3) of 8 or 27 nodes: (c, a)."""
     _, wdet = _geometry(X)
-    return np.einsum("ga,cg->ca", _N, wdet)
+    return np.einsum("ga,cg->ca", _RULES[X.shape[1]][0], wdet)
 
 
 def face_weights(Xf):
@@ -147,11 +211,35 @@ def face_weights(Xf):
     return np.einsum("ga,fg->fa", N, area)
 
 
-def nodal_face_weights(faces, coords):
-    """Per local vertex: sum over the given faces of int N_a ds. (nv,)"""
+#: q2: a face node's share of the Gauss-Lobatto weight w_a |J(xi_a)| of its 9-node face,
+#: taken from each of the refined quadrilaterals holding it (1, 2 or 4 of them), by role:
+#: w_a = 1/9, 4/9, 16/9 (corner, edge, centre; Simpson's 1/3, 4/3, 1/3 squared)
+_Q2_FACE_SHARE = np.array([1.0 / 9.0, 4.0 / 9.0 / 2.0, 16.0 / 9.0 / 4.0])
+
+
+def q2_face_weights(Xf, roles):
+    """int_face N_a ds of the 9-node faces by Gauss-Lobatto (exact for planar faces), as
+    each refined quadrilateral Xf (f, 4, 3) contributes to its corners of roles (f, 4)
+    (Q2_ROLE: 0, 1, 2): (f, 4). The 9-node face's |J| at a node is that of a refined
+    quadrilateral's bilinear map at the same corner times 4: |e1 x e2| of the
+    quadrilateral's two edges from that corner."""
+    e_next = np.roll(Xf, -1, axis=1) - Xf
+    e_prev = np.roll(Xf, 1, axis=1) - Xf
+    jac = np.linalg.norm(np.cross(e_next, e_prev), axis=2)        # (f, 4)
+    if np.any(roles > 2):
+        raise ValueError("a q2 face node cannot be an element's centre")
+    return _Q2_FACE_SHARE[roles] * jac
+
+
+def nodal_face_weights(faces, coords, roles=None):
+    """Per local vertex: sum over the given faces of int N_a ds (nv,). roles: per local
+    vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals),
+    None for q1 and bbar."""
     w = np.zeros(coords.shape[0])
     if faces.shape[0]:
-        np.add.at(w, faces.ravel(), face_weights(coords[faces]).ravel())
+        fw = (face_weights(coords[faces]) if roles is None
+              else q2_face_weights(coords[faces], roles[faces]))
+        np.add.at(w, faces.ravel(), fw.ravel())
     return w
 
 
@@ -169,7 +257,7 @@ def _aij_family(mat_type):
 def create_matrix(dm, conn):
     """An empty AIJ matrix (block size 3, the DM's local-to-global map, the DM's Mat type:
     -dm_mat_type / -mat_type) preallocated exactly for the Q1 pattern of the cells conn
-    (n, 8) (two nodes couple when they share a cell), in place of dm.createMat(), whose
+    (n, 8) or (n, 27) (two nodes couple when they share a cell), in place of dm.createMat(), whose
     DMPlex preallocation walks the mesh topology: 1.48 s against 0.42 s at Nd = 40 on 2
     ranks, the same matrix. Each rank lists the distinct (row, column) node pairs of its
     cells, in bounded chunks of rows; the pairs of rows it does not own go to their
@@ -196,6 +284,8 @@ def _preallocated(dm, conn, mat_type):
     dm.restoreGlobalVec(g)
     starts = np.array(mpi.allgather(r0), dtype=np.int64)
     nn = lgb.size
+    per = conn.shape[1]
+    rows_at_once = max(1024, PATTERN_CHUNK * 8 // per)
     flat = conn.ravel().astype(np.int64)
     order = np.argsort(flat, kind="stable")                       # node -> its cells
     ptr = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=nn))])
@@ -205,7 +295,7 @@ def _preallocated(dm, conn, mat_type):
         row * n_global + column (sorted)."""
         lens = ptr[rows + 1] - ptr[rows]
         at = order[np.repeat(ptr[rows] - np.cumsum(lens) + lens, lens) + np.arange(lens.sum())]
-        return np.unique(lgb[flat[at]][:, None] * n_global + lgb[conn[at // 8]])
+        return np.unique(lgb[flat[at]][:, None] * n_global + lgb[conn[at // per]])
 
     def add(keys):
         ga, gb = keys // n_global, keys % n_global
@@ -213,8 +303,8 @@ def _preallocated(dm, conn, mat_type):
 
     count = np.zeros((r1 - r0, 2), dtype=np.int64)                # (diagonal, off) block
     send = [[] for _ in range(mpi.size)]
-    for k0 in range(0, nn, PATTERN_CHUNK):
-        keys = pairs(np.arange(k0, min(nn, k0 + PATTERN_CHUNK)))
+    for k0 in range(0, nn, rows_at_once):
+        keys = pairs(np.arange(k0, min(nn, k0 + rows_at_once)))
         ga = keys // n_global
         own = (ga >= r0) & (ga < r1)
         add(keys[own])
@@ -254,8 +344,9 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     idx_type = PETSc.IntType
     _EV_ASSEMBLE.begin()
-    for s in range(0, conn.shape[0], CHUNK):
-        c = conn[s:s + CHUNK]
+    step = chunk(conn)
+    for s in range(0, conn.shape[0], step):
+        c = conn[s:s + step]
         Ke = element_stiffness(coords[c], lam, mu, element)
         if frame is not None:
             Ke = frame.element_matrices(Ke, c)
@@ -271,8 +362,9 @@ def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
     (lam, mu), in the contact frame's basis when one is given: the element matrices'
     diagonals summed, no matrix kept."""
     diag = np.zeros((coords.shape[0], 3))
-    for s in range(0, conn.shape[0], CHUNK):
-        c = conn[s:s + CHUNK]
+    step = chunk(conn)
+    for s in range(0, conn.shape[0], step):
+        c = conn[s:s + step]
         Ke = element_stiffness(coords[c], lam, mu, element)
         if frame is not None:
             Ke = frame.element_matrices(Ke, c)
@@ -335,19 +427,21 @@ def local_to_global(dm, local_array, gvec=None):
     return gvec
 
 
-def load_vector(dm, conn, coords, tractions, body_force):
-    """b: tractions [(faces (nf,4), p (3,))] and a constant body force f (3,)."""
+def load_vector(dm, conn, coords, tractions, body_force, roles=None):
+    """b: tractions [(faces (nf,4), p (3,))] and a constant body force f (3,) on the
+    elements conn (n, 8) or (n, 27); roles: nodal_face_weights' (q2)."""
     nv = coords.shape[0]
     loc = np.zeros((nv, 3))
     for faces, p in tractions:
         p = np.asarray(p, dtype=float)
         if faces.shape[0] and np.any(p != 0.0):
-            loc += nodal_face_weights(faces, coords)[:, None] * p[None, :]
+            loc += nodal_face_weights(faces, coords, roles)[:, None] * p[None, :]
     f = np.asarray(body_force, dtype=float)
     if np.any(f != 0.0) and conn.shape[0]:
         wv = np.zeros(nv)
-        for s in range(0, conn.shape[0], CHUNK):
-            c = conn[s:s + CHUNK]
+        step = chunk(conn)
+        for s in range(0, conn.shape[0], step):
+            c = conn[s:s + step]
             np.add.at(wv, c.ravel(), element_volume_weights(coords[c]).ravel())
         loc += wv[:, None] * f[None, :]
     return local_to_global(dm, loc.ravel())

@@ -93,10 +93,11 @@ class ContactFrame:
         return self._apply(vec, self.Q.T)
 
     def element_matrices(self, Ke, cells):
-        """K~_ab = Q_a K_ab Q_b^T for element matrices Ke (m, 24, 24) of `cells` (m, 8);
+        """K~_ab = Q_a K_ab Q_b^T for element matrices Ke (m, 3 a, 3 a) of `cells` (m, a);
         Q_a = I at nodes that are not rotated."""
         T = np.where(self.local_mask[cells][:, :, None, None], self.Q, np.eye(3))
-        K = Ke.reshape(cells.shape[0], 8, 3, 8, 3)
+        m, a = cells.shape
+        K = Ke.reshape(m, a, 3, a, 3)
         K = np.einsum("maij,majbk,mblk->maibl", T, K, T, optimize=True)
         return K.reshape(Ke.shape)
 

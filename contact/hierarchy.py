@@ -7,6 +7,12 @@ parallel.
            Nd are the coarse-to-fine start's meshes (none is rebuilt from scratch)
     gmsh   the file as gmsh meshes it (its own Nd), read on rank 0 and distributed: one level
     file   a mesh file PETSc reads, as read: one level
+The q2 element (fem.py) lives on two levels: its elements are the cells of one level, its
+nodes the vertices of the next (the element's 27 nodes: its 8 refined cells' vertices).
+A q2 hierarchy (quadratic=True) is built for the node mesh, Nd_nodes = 2 Nd, so its finest
+level is always a refinement (a mesh file is read, distributed and refined once);
+`quadratic_cells(j)` gives level j's elements.
+
 k (`-mesh_refine K`, default -1: automatic) is the largest k with Nd a multiple of 2^k whose
 coarse box still has MIN_CELLS_PER_RANK cells per rank (the partition of the fine mesh is the
 coarse one's, refined: its balance is the coarse one's), and at least the coarse-to-fine
@@ -25,7 +31,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import mesh, options
-from .mesh import HEX_REF, MeshError
+from .mesh import HEX_FACES, HEX_REF, MeshError
 
 #: the automatic k keeps at least this many coarse cells per rank
 MIN_CELLS_PER_RANK = 16
@@ -73,23 +79,28 @@ class MeshHierarchy:
     c2f_levels: the coarse-to-fine levels the solve asks for (the hierarchy has at least
     these many below the finest, as far as Nd's factors of 2 allow)."""
 
-    def __init__(self, scene, comm, c2f_levels=0):
+    def __init__(self, scene, comm, c2f_levels=0, quadratic=False):
         m = scene["mesh"]
         self.comm = comm
         self.kind = m.get("type", "box")
         self.physical_names = []
         self._prolongations = {}
+        self._quadratic = {}
+        #: q2: the element mesh is one level below the node mesh (module docstring)
+        self.quadratic = quadratic
+        up = 1 if quadratic else 0
         nd = int(m.get("nd", 1))
         refine = options.get("mesh_refine")
         if refine < -1:
             raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
         if self.kind == "box":
             per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])]
-            k = refinements(nd, per, comm.getSize(), refine, max(c2f_levels, 0))
-            nd0 = nd >> k
+            k = refinements(nd << up, per, comm.getSize(), refine + up if refine >= 0 else -1,
+                            max(c2f_levels, 0) + up)
+            nd0 = (nd << up) >> k
             dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
         else:
-            k, nd0 = 0, nd
+            k, nd0 = up, nd
             if self.kind == "gmsh":
                 from . import gmshio                     # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
@@ -109,7 +120,8 @@ class MeshHierarchy:
                 dm.destroy()
                 dm = fine
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
-            _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
+            if self.kind == "box":
+                _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
             self.levels.append(lv)
         dm.destroy()
 
@@ -130,7 +142,8 @@ class MeshHierarchy:
         """One line: how the mesh was made (for the console and summary.json)."""
         nd0 = self.levels[0].nd
         if self.kind != "box":
-            return f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
+            return (f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
+                    + (", refined once in parallel (q2 nodes)" if self.refinements else ""))
         if self.refinements == 0:
             return (f"box built whole on rank 0 at Nd = {nd0}, distributed "
                     f"({self.partitioner})")
@@ -145,6 +158,14 @@ class MeshHierarchy:
         for lv in self.levels[:j]:
             if lv.dm is not None:
                 lv.destroy()
+
+    def quadratic_cells(self, j):
+        """Level j's q2 elements (built once): see QuadraticCells."""
+        if j not in self._quadratic:
+            if j < 1:
+                raise MeshError("the q2 element needs a refined level (its nodes)")
+            self._quadratic[j] = QuadraticCells(self.levels[j - 1], self.levels[j])
+        return self._quadratic[j]
 
     def prolongation(self, j):
         """P (Mat, block size 3): level j - 1 -> level j, Q1 interpolation (built once,
@@ -179,7 +200,27 @@ def uninterpolated(dm):
     u.uninterpolate()                                      # in place: u is the new DM
     u.getCoordinateDM().setSection(dm.getCoordinateSection())
     u.setCoordinatesLocal(dm.getCoordinatesLocal())
+    _copy_cell_labels(dm, u)
     return u
+
+
+def _copy_cell_labels(src, dst):
+    """The gmsh physical groups' cell labels ("physical:*", mesh.labelled_faces) of src on
+    dst, whose cells are src's, in the same numbering (DMPlexUninterpolate drops labels)."""
+    cs, ce = src.getHeightStratum(0)
+    for i in range(src.getNumLabels()):
+        name = src.getLabelName(i)
+        if not name.startswith("physical:"):
+            continue
+        dst.createLabel(name)
+        out = dst.getLabel(name)
+        label = src.getLabel(name)
+        for v in label.getValueIS().getIndices():
+            pts = label.getStratumIS(int(v)).getIndices()
+            cells = pts[(pts >= cs) & (pts < ce)].astype(PETSc.IntType)
+            is_ = PETSc.IS().createGeneral(cells, comm=PETSc.COMM_SELF)
+            out.setStratumIS(int(v), is_)
+            is_.destroy()
 
 
 def _shape(xi):
@@ -200,6 +241,76 @@ def _owned_blocks(dm):
     lo, hi = (i // 3 for i in g.getOwnershipRange())
     dm.restoreGlobalVec(g)
     return lg, (lg >= lo) & (lg < hi), (lo, hi)
+
+
+class QuadraticCells:
+    """The q2 elements on level `fine` (the regular refinement of level `coarse`): the
+    coarse cells, each with its 27 nodes among the fine vertices.
+
+        conn   (ne, 27) local fine vertex indices in fem.Q2_REF order
+        roles  (nv,) each local fine vertex's fem.Q2_ROLE (0 corner, 1 edge midpoint,
+               2 face centre, 3 element centre)
+        octant (nc_fine,) for each fine cell (child 8 p + i of element p), the position
+               (0..7, o = 4 ox + 2 oy + oz) of the eighth of element p it fills: its
+               reference box is [ox - 1, ox] x [oy - 1, oy] x [oz - 1, oz]
+        nd     the element mesh's Nd (the coarse level's)
+    The 27 nodes are found as prolongation() finds a fine vertex's place in its parent:
+    the fine vertices of the element's 8 children nearest its 27 reference points (the
+    trilinear map), which must coincide (else MeshError)."""
+
+    def __init__(self, coarse, fine):
+        from .fem import Q2_REF, Q2_ROLE
+        ncc, ncf = coarse.conn.shape[0], fine.conn.shape[0]
+        if ncf != 8 * ncc:
+            raise MeshError(f"level {fine.nd} is not the regular refinement of level "
+                            f"{coarse.nd} on this rank ({ncf} cells, {ncc} coarse)")
+        self.nd = coarse.nd
+        ref = _shape(Q2_REF)                                            # (27, 8)
+        conn = np.empty((ncc, 27), dtype=fine.conn.dtype)
+        octant = np.empty(ncf, dtype=np.intp)
+        worst = 0.0
+        for s in range(0, ncc, CHUNK // 8):
+            p = np.arange(s, min(ncc, s + CHUNK // 8))
+            Xp = coarse.coords[coarse.conn[p]]                           # (n, 8, 3)
+            target = np.einsum("qa,nai->nqi", ref, Xp)                   # (n, 27, 3)
+            kids = fine.conn[(8 * p[:, None] + np.arange(8)).ravel()].reshape(p.size, 64)
+            d = np.linalg.norm(target[:, :, None, :] - fine.coords[kids][:, None, :, :],
+                               axis=3)                                   # (n, 27, 64)
+            at = np.argmin(d, axis=2)
+            h = np.ptp(Xp, axis=1).max(axis=1)
+            dmin = np.take_along_axis(d, at[:, :, None], axis=2)[:, :, 0]
+            worst = max(worst, float((dmin / h[:, None]).max(initial=0.0)))
+            conn[p] = np.take_along_axis(kids, at, axis=1)
+            # each child's eighth: the lowest reference index of its vertices per axis
+            pos = np.argmax(conn[p][:, None, None, :] ==
+                            fine.conn[(8 * p[:, None] + np.arange(8))][:, :, :, None], axis=3)
+            lo = (Q2_REF[pos] + 1).min(axis=2).astype(np.intp)         # (n, 8 kids, 3)
+            octant[(8 * p[:, None] + np.arange(8)).ravel()] = \
+                (4 * lo[..., 0] + 2 * lo[..., 1] + lo[..., 2]).ravel()
+        comm = fine.dm.getComm().tompi4py()
+        if comm.allreduce(worst, op=MPI.MAX) > 1e-8:
+            raise MeshError(f"level {fine.nd}: a cell's vertices are not the 27 points of "
+                            f"its parent (relative distance {worst:.2e})")
+        self.conn, self.octant = conn, octant
+        self.roles = np.zeros(fine.coords.shape[0], dtype=np.intp)
+        self.roles[conn.ravel()] = np.tile(Q2_ROLE, ncc)
+
+    def refined_faces(self, cells, k):
+        """The fine quadrilaterals (4 n, 4) (cyclic, local fine vertices) of face k
+        (HEX_FACES) of elements `cells` (n,): a gmsh physical group's faces, marked on the
+        element mesh, on the node mesh."""
+        from .fem import Q2_REF
+        quads = np.empty((6, 4, 4), dtype=np.intp)         # per face k: 4 quads of positions
+        index = {tuple(r): q for q, r in enumerate(Q2_REF.astype(int))}
+        for f in range(6):
+            ref = HEX_REF[HEX_FACES[f]]
+            d = int(np.flatnonzero(np.ptp(ref, axis=0) == 0.0)[0])
+            a, b = (e for e in range(3) if e != d)
+            at = lambda i, j: index[tuple(int(v) for v in np.where(      # noqa: E731
+                np.arange(3) == d, ref[0, d], np.where(np.arange(3) == a, i, j)))]
+            quads[f] = [[at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]
+                        for i in (-1, 0) for j in (-1, 0)]
+        return self.conn[np.asarray(cells)[:, None, None], quads[np.asarray(k)]].reshape(-1, 4)
 
 
 def prolongation(coarse, fine):

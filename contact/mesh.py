@@ -259,18 +259,27 @@ def labelled_faces(dm, conn, label_name):
     cell label `label_name` (value = bitmask, bit k <=> face HEX_FACES[k]; see
     contact.gmshio). conn rows are the cells cStart..cEnd. With overlap 0 each cell, and so
     each face, is on one rank."""
+    cells, k = labelled_cell_faces(dm, label_name)
+    if cells.size == 0:
+        return np.zeros((0, 4), dtype=np.intp)
+    return conn[cells[:, None], HEX_FACES[k]].astype(np.intp)
+
+
+def labelled_cell_faces(dm, label_name):
+    """The faces of labelled_faces as (local cell, face k of HEX_FACES) arrays."""
     if not dm.hasLabel(label_name):
         raise MeshError(f"the mesh has no label '{label_name}'")
     label = dm.getLabel(label_name)
     cs, ce = dm.getHeightStratum(0)
-    out = [np.zeros((0, 4), dtype=np.intp)]
+    out_c, out_k = [np.zeros(0, dtype=np.intp)], [np.zeros(0, dtype=np.intp)]
     for v in label.getValueIS().getIndices():            # at most 63 distinct masks
         pts = label.getStratumIS(int(v)).getIndices()
         cells = pts[(pts >= cs) & (pts < ce)] - cs
         for k in range(6):
             if (int(v) >> k) & 1 and cells.size:
-                out.append(conn[cells][:, HEX_FACES[k]])
-    return np.concatenate(out).astype(np.intp)
+                out_c.append(cells.astype(np.intp))
+                out_k.append(np.full(cells.size, k, dtype=np.intp))
+    return np.concatenate(out_c), np.concatenate(out_k)
 
 
 def rotate_coordinates(dm, coords, axis, degrees, origin=(0.0, 0.0, 0.0)):

@@ -69,8 +69,10 @@ REGISTRY = [
     Option("friction", None, str, "Coulomb coefficient: a number or a NumPy expression in "
            "x, y, z, e.g. \"where(x<1.5,0.3,0)\"", "F", ("contact", "friction")),
     Option("element", "auto", str, "hexahedron: q1 (the paper's trilinear), bbar (B-bar: "
-           "no volumetric locking as nu -> 0.5), auto (q1 in -solver_mode faithful, else "
-           "bbar where nu >= 0.4, else q1)", "auto|q1|bbar", ("mesh", "element")),
+           "no volumetric locking as nu -> 0.5), q2 (27-node triquadratic: -nd counts its "
+           "elements, its nodes are the vertices of the mesh refined once), auto (q1 in "
+           "-solver_mode faithful, else bbar where nu >= 0.4, else q1)", "auto|q1|bbar|q2",
+           ("mesh", "element")),
     Option("young", None, float, "Young's modulus E", "E", ("material", "young")),
     Option("poisson", None, float, "Poisson ratio nu", "NU", ("material", "poisson")),
     Option("load_steps", 1, int, "quasi-static load increments (1: the static problem)", "N",

@@ -19,11 +19,11 @@ from petsc4py import PETSc
 
 from . import admissibility, driver, options, transfer
 from .apg import APG
-from .discretisation import Discretisation
+from .discretisation import Discretisation, element_of
 from .hierarchy import MeshHierarchy
 
 #: the discretisation's fields, read through the problem (tests, output, transfer)
-DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "coords", "parts", "physical_names",
+DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic", "coords", "parts", "physical_names",
                "clamped", "clamped_xyz", "coordinates", "has_contact_part", "normal", "cs",
                "frame", "A", "b", "u_D", "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
                "to_xyz", "xyz_rows")
@@ -52,7 +52,8 @@ class ContactProblem:
         stage.push()
         try:
             if hierarchy is None:
-                hierarchy = MeshHierarchy(self.scene, self.comm, self._c2f_asked())
+                hierarchy = MeshHierarchy(self.scene, self.comm, self._c2f_asked(),
+                                          quadratic=element_of(self.scene) == "q2")
             self.hierarchy = hierarchy
             self.level = level % len(hierarchy.levels)
             self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level)
@@ -93,22 +94,24 @@ class ContactProblem:
         (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None."""
         levels = self._c2f_asked()
         h = self.hierarchy
+        lowest = 1 if h.quadratic else 0          # q2's nodes: a level above its elements'
+        below = self.level - lowest
         if levels == -1:
-            levels = sum(lv.nd >= 4 for lv in h.levels[:self.level]) \
+            levels = sum(lv.nd >= 4 for lv in h.levels[lowest:self.level]) \
                 if driver.solver_mode(self.scene) == "newton" else 0
-        if levels > self.level:
-            note = (f"coarse-to-fine levels beyond {self.level} (the mesh hierarchy has "
-                    f"{self.level} below Nd = {self.nd}: "
+        if levels > below:
+            note = (f"coarse-to-fine levels beyond {below} (the mesh hierarchy has "
+                    f"{below} below Nd = {self.nd}: "
                     + ("Nd has no more factors of 2)" if h.kind == "box"
                        else "a mesh file is one level)"))
             if note not in self.skipped:
                 self.skipped.append(note)
-            levels = self.level
+            levels = below
         if levels == 0 or self.scene.get("loading", {}).get("steps", 1) > 1:
             return None
         j = self.level - 1
         sc = copy.deepcopy(self.scene)
-        sc["mesh"]["nd"] = h.levels[j].nd
+        sc["mesh"]["nd"] = h.levels[j - lowest].nd
         # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of
         # a coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol
         with options.inserted({"newton_rtol": "1e-6"}):

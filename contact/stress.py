@@ -10,7 +10,10 @@ order of VTK's symmetric tensors (ParaView names them so): xx, yy, zz, xy, yz, x
   von Mises  sqrt(((s_xx-s_yy)^2 + (s_yy-s_zz)^2 + (s_zz-s_xx)^2)/2 + 3 (s_xy^2+s_yz^2+s_xz^2))
              of the cell mean (per cell) and of the nodal average (per node).
 Shape-function gradients are fem.py's (`fem._geometry`); all cells at once (NumPy over
-chunks of fem.CHUNK cells).
+chunks of fem.CHUNK cells). q2 (fem.py): the cells are the refined mesh's, each an eighth
+of a 27-node element; a cell's mean is that of the element's quadratic field over the
+eighth (2x2x2 Gauss points of the eighth, in the element's reference coordinates), so a
+linear stress is reproduced exactly in every eighth's mean.
 
 Contact (per owned contact node j, from the reaction R = A u - b of residuals.py; in x, y, z):
   traction         t_j = R_j / w_j, the force per area of the foundation on the body
@@ -47,12 +50,29 @@ def von_mises(s):
                    + 3.0 * (s[..., 3] ** 2 + s[..., 4] ** 2 + s[..., 5] ** 2))
 
 
-def cell_stress(X, U, lam, mu):
-    """Cell-mean Cauchy stress (c, 6) and volumes (c,) of cells X (c, 8, 3) with nodal
-    displacements U (c, 8, 3): the 2x2x2 Gauss values averaged with weights |J| w."""
-    dNdx, wdet = fem._geometry(X)
+def _octant_rules():
+    """q2: for each eighth o = 4 ox + 2 oy + oz of the reference cube, the rule (dN,
+    dN^T, w) of its 2x2x2 Gauss points for fem._geometry."""
+    g = fem._GP3 / 2.0
+    rules = []
+    for o in range(8):
+        lo = np.array([o // 4, (o // 2) % 2, o % 2], dtype=float)
+        _, dn = fem.q2_shape(lo - 0.5 + g)
+        rules.append((dn, np.ascontiguousarray(dn.transpose(0, 2, 1)), np.full(8, 0.125)))
+    return rules
+
+
+_OCTANTS = _octant_rules()
+
+
+def cell_stress(X, U, lam, mu, rule=None):
+    """Cell-mean Cauchy stress (c, 6) and volumes (c,) of cells X (c, a, 3) with nodal
+    displacements U (c, a, 3): the Gauss values (the element's rule, or `rule`: see
+    fem._geometry) averaged with weights |J| w."""
+    dNdx, wdet = fem._geometry(X, rule)
     vol = wdet.sum(axis=1)
-    g = np.matmul(wdet[:, None, :], dNdx.reshape(X.shape[0], 8, 24)).reshape(-1, 8, 3)
+    a = X.shape[1]
+    g = np.matmul(wdet[:, None, :], dNdx.reshape(X.shape[0], -1, 3 * a)).reshape(-1, a, 3)
     H = np.matmul(U.transpose(0, 2, 1), g) / vol[:, None, None]   # mean grad u (matmul:
     # einsum is ~10x slower)
     eps = 0.5 * (H + H.transpose(0, 2, 1))
@@ -97,9 +117,18 @@ def body_stress(problem, u=None):
     lam, mu = fem.lame(mat["young"], mat["poisson"])
     nc = conn.shape[0]
     s, vol = np.zeros((nc, 6)), np.zeros(nc)
-    for a in range(0, nc, fem.CHUNK):
-        c = conn[a:a + fem.CHUNK]
-        s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
+    q = problem.quadratic
+    if q is None:
+        for a in range(0, nc, fem.CHUNK):
+            c = conn[a:a + fem.CHUNK]
+            s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
+    else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
+        for o, rule in enumerate(_OCTANTS):
+            cells = np.flatnonzero(q.octant == o)
+            for a in range(0, cells.size, fem.CHUNK // 8):
+                f = cells[a:a + fem.CHUNK // 8]
+                e = q.conn[f // 8]
+                s[f], vol[f] = cell_stress(coords[e], ul[e], lam, mu, rule)
     vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes
     acc = np.column_stack([np.bincount(conn.ravel(), weights=np.repeat(vals[:, k], 8),
                                        minlength=coords.shape[0]) for k in range(7)])

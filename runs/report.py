@@ -16,7 +16,9 @@ What it does:
      -nd N) for Nd = 4 .. 80; max |u|, the contact force N and the energy J against their
      continuum values, extrapolated from the finest runs with an error estimate
      (contact/validation/convergence.py); the cost (Nd, whole-process time) of 10 %, 1 %
-     and 0.1 % in each;
+     and 0.1 % in each; then the same with -element q2 (N = 1 .. 24), both elements
+     against one continuum value per quantity (the extrapolation with the smaller error
+     estimate), with the plot of both;
   3. for each size Nd of the sweeps (6 and 12): two reference solutions at tolerance 1e-12
      from two different variants (SSN with an iterative linear solver, and APG with
      restart, or SSN with a direct solver where APG would be too slow), and how well they
@@ -50,6 +52,8 @@ QUANTITIES = (("umax", "max |u|", lambda s: s["max_displacement"]),
               ("energy", "energy J", lambda s: s["energy"]))
 LEVELS = (1e-1, 1e-2, 1e-3)                      # the accuracies whose cost is read off
 TOTAL_NDS = [4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80]
+#: the q2 element's sizes (N elements per unit: the unknowns of q1 at 2 N)
+Q2_NDS = [1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24]
 #: CalculiX C3D20R's max |u| on the paper's beam at N = 2, 4, 8 (issue 25's table)
 C3D20R = (4.4601e-4, 4.5274e-4, 4.5403e-4)
 
@@ -230,15 +234,17 @@ def sweep(nd, small, args, log, unavailable):
 TOTAL = "total"      # the directory prefix of the total-error runs
 
 
-def total_study(nds, args, log):
-    """The default solver as a user runs it (no option but -nd) on each Nd, on
-    args.total_np ranks: whole-process wall time, and each quantity's total error
-    (solver + discretisation) against its continuum value (convergence.continuum over the
-    runs). Returns {"rows", "limits", "costs", "np"}."""
+def total_study(nds, args, log, element=None):
+    """The default solver as a user runs it (no option but -nd, and -element when given)
+    on each Nd, on args.total_np ranks: whole-process wall time, and each quantity's total
+    error (solver + discretisation) against its continuum value (convergence.continuum
+    over the runs). Returns {"rows", "limits", "costs", "np", "element"}."""
     rows = []
+    tag = f"-{element}" if element else ""
+    opts = ["-element", element] if element else []
     for n in nds:
-        r = harness.run_case(os.path.join(args.out_dir, f"{TOTAL}-np{args.total_np}-nd{n}"),
-                             ["-nd", n], args.total_np, timeout=args.total_timeout,
+        r = harness.run_case(os.path.join(args.out_dir, f"{TOTAL}-np{args.total_np}{tag}-nd{n}"),
+                             ["-nd", n] + opts, args.total_np, timeout=args.total_timeout,
                              force=args.force, check=False, log=log)
         row = {"nd": n, "status": r.status, "wall": r.wall, "cpu": r.cpu,
                "error": r.error if r.status == "failed" else None}
@@ -251,18 +257,44 @@ def total_study(nds, args, log):
                        values={k: float(f(s)) for k, _, f in QUANTITIES})
         rows.append(row)
     ok = [r for r in rows if r["status"] == "ok"]
-    limits, costs = {}, {}
+    limits = {}
     if len(ok) >= 2:
         for k, _, _ in QUANTITIES:
             L = convergence.continuum([r["nd"] for r in ok], [r["values"][k] for r in ok])
             L["relative_error"] = L["error"] / abs(L["value"])
             limits[k] = L
-            for r in ok:
-                r.setdefault("err", {})[k] = abs(r["values"][k] - L["value"]) / abs(L["value"])
-            data = [(r["nd"], r["dofs"], r["wall"], r["err"][k]) for r in ok]
-            costs[k] = {lvl: (None if L["relative_error"] > lvl / 3 else
-                              convergence.cost(data, lvl, L["order"])) for lvl in LEVELS}
-    return {"rows": rows, "limits": limits, "costs": costs, "np": args.total_np}
+    tot = {"rows": rows, "limits": limits, "costs": {}, "np": args.total_np,
+           "element": element or "q1"}
+    score(tot, limits)
+    return tot
+
+
+def score(tot, limits):
+    """Each run's error against the continuum values `limits` (a study's own, or another
+    one's), and the cost of each accuracy level (tot["err"], tot["costs"], tot["against"])."""
+    ok = [r for r in tot["rows"] if r["status"] == "ok"]
+    tot["costs"], tot["against"] = {}, limits
+    for k, _, _ in QUANTITIES:
+        if k not in limits:
+            continue
+        L = limits[k]
+        for r in ok:
+            r.setdefault("err", {})[k] = abs(r["values"][k] - L["value"]) / abs(L["value"])
+        data = [(r["nd"], r["dofs"], r["wall"], r["err"][k]) for r in ok]
+        tot["costs"][k] = {lvl: (None if L["relative_error"] > lvl / 3 else
+                                 convergence.cost(data, lvl, L["order"])) for lvl in LEVELS}
+
+
+def common_limits(*studies):
+    """Per quantity, the continuum value of the study whose estimate of it has the
+    smaller error (tagged with its element): one q* for comparing elements."""
+    out = {}
+    for k, _, _ in QUANTITIES:
+        cands = [dict(t["limits"][k], element=t["element"]) for t in studies
+                 if k in t["limits"]]
+        if cands:
+            out[k] = min(cands, key=lambda L: L["relative_error"])
+    return out
 
 
 def make_run_cost(args, log, repeat=3):
@@ -328,23 +360,34 @@ def plot_errors(nd, data, path):
     plt.close(fig)
 
 
-def plot_total(tot, path):
+ELEMENT_STYLE = {"q1": ("k", "o", "default solver, q1 (the paper's element), one run per Nd"),
+                 "q2": ("C0", "s", "default solver, -element q2, one run per Nd")}
+
+
+def plot_total(tot, path, others=()):
     """Total error of each quantity against whole-process time, one panel each: a point
     per Nd (labelled), the accuracy levels dotted, and below the continuum value's own
-    error estimate a grey band (errors there are not resolved)."""
+    error estimate a grey band (errors there are not resolved). others: more studies (other
+    elements) scored against the same continuum values, drawn beside."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    ok = [r for r in tot["rows"] if r["status"] == "ok" and "err" in r]
     fig, axes = plt.subplots(1, len(QUANTITIES), figsize=(16, 5.4), sharey=True)
     for ax, (k, label, _) in zip(axes, QUANTITIES):
-        L = tot["limits"][k]
-        x = [r["wall"] for r in ok]
-        y = [max(r["err"][k], FLOOR) for r in ok]
-        ax.loglog(x, y, "o-", color="k", ms=4, label="default solver, one run per Nd")
-        for r, xi, yi in zip(ok, x, y):
-            ax.annotate(str(r["nd"]), (xi, yi), fontsize=7, textcoords="offset points",
-                        xytext=(3, 4))
+        L = tot["against"][k]
+        y_all = []
+        for study in (tot,) + tuple(others):
+            ok = [r for r in study["rows"] if r["status"] == "ok" and "err" in r]
+            col, mark, name = ELEMENT_STYLE[study.get("element", "q1")]
+            x = [r["wall"] for r in ok]
+            y = [max(r["err"][k], FLOOR) for r in ok]
+            y_all += y
+            ax.loglog(x, y, mark + "-", color=col, ms=4,
+                      label=name if others else "default solver, one run per Nd")
+            for r, xi, yi in zip(ok, x, y):
+                ax.annotate(str(r["nd"]), (xi, yi), fontsize=7, textcoords="offset points",
+                            xytext=(3, 4), color=col)
+        y = y_all
         for lvl, col in zip(LEVELS, ("C2", "C1", "C3")):
             ax.axhline(lvl, color=col, ls=":", lw=1.0, label=f"{100 * lvl:g} %")
         ax.axhspan(FLOOR, max(L["relative_error"], FLOOR), color="0.85",
@@ -352,7 +395,8 @@ def plot_total(tot, path):
         ax.set_ylim(max(min(min(y), L["relative_error"], min(LEVELS)) / 3, 1e-7), 1.0)
         ax.set_xlabel(f"whole-process wall time, s ({tot['np']} rank"
                       f"{'s' if tot['np'] > 1 else ''})")
-        ax.set_title(f"{label}: continuum value {L['value']:.6g}\n"
+        ax.set_title(f"{label}: continuum value {L['value']:.6g}"
+                     + (f" (from {L['element']})" if others else "") + "\n"
                      f"(± {100 * L['relative_error']:.2g} %"
                      + (f", observed order {L['order']:.2f}" if L["order"] else
                         ", not extrapolated") + ")", fontsize=10)
@@ -362,7 +406,8 @@ def plot_total(tot, path):
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9,
                frameon=False)
     fig.suptitle("Paper's beam (F = 0.3): total error against whole-process time, the "
-                 "default solver (labels: Nd)", fontsize=11)
+                 "default solver" + (", q1 and q2" if others else "") + " (labels: Nd)",
+                 fontsize=11)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -410,7 +455,7 @@ def reading(nd, data):
     return out
 
 
-def write_md(sizes, tot, mr, args, times, unavailable):
+def write_md(sizes, tot, mr, args, times, unavailable, quad=None):
     L = ["# Error against run time: the default solver, its tolerance, and the total error",
          ""]
     L += harness.provenance_lines(1, make="report", argv=args.argv)
@@ -426,7 +471,7 @@ def write_md(sizes, tot, mr, args, times, unavailable):
           f"`.venv/bin/python -m contact -nd N -output_dir runs/out/report/<case> <options>` "
           f"(the total-error runs under `mpirun -n {tot['np']}`).",
           ""]
-    L += total_md(tot) + make_run_md(mr)
+    L += total_md(tot) + (quadratic_md(*quad) if quad else []) + make_run_md(mr)
     L += ["", "## The solver's own error against its tolerance", "",
           "The default solver first, then the paper's loops and their variants, each against "
           "a reference solution of the same mesh (no discretisation error here).", ""]
@@ -612,23 +657,8 @@ def total_md(tot):
          f"against the continuum value q* of each quantity: max |u| (`max_displacement`), "
          f"the contact force N (the normal resultant of the contact tractions, "
          f"`contact_result.normal`) and the energy J.", "",
-         "![total error against whole-process time](report/total_error_vs_time.png)", "",
-         "| quantity | " + " | ".join(f"{lvl(x)}: Nd, time" for x in LEVELS) + " |",
-         "|---|" + "---|" * len(LEVELS)]
-    for k, name, _ in QUANTITIES:
-        cells = []
-        Lk = tot["limits"][k]
-        for x in LEVELS:
-            c = tot["costs"][k][x]
-            if Lk["relative_error"] > x / 3:
-                cells.append(f"not resolved (q* known to ± {lvl(Lk['relative_error'])})")
-            elif c is None:
-                cells.append("not reached")
-            elif c["projected"]:
-                cells.append(f"projected: Nd ≈ {c['nd']:.0f}, ≈ {c['time']:.2g} s")
-            else:
-                cells.append(f"Nd = {c['nd']}, {c['time']:.2g} s")
-        L.append(f"| {md(name)} | " + " | ".join(cells) + " |")
+         "![total error against whole-process time](report/total_error_vs_time.png)", ""]
+    L += cost_table([tot])
     L += ["", "Read: the cheapest run from which every finer run stays within the level (a "
           "coarse mesh whose error crosses zero by chance does not count). Past the finest "
           "run, a projection (marked): the Nd the observed order gives, and its time grown "
@@ -651,10 +681,40 @@ def total_md(tot):
           "h = 1/Nd; the same from the next-finest doubling triple gives the second estimate, "
           "and their difference is the error estimate. tests/test_convergence.py checks the "
           "extrapolation against closed forms.", "",
-          "### The runs", "",
-          "| Nd | dofs | whole process, s | set-up, s | solve, s | Newton steps | max "
-          "residual | peak memory, MiB (all ranks) | max abs(u) | N | J | error max abs(u) | "
-          "error N | error J |", "|---|" + "---|" * 13]
+          "### The runs", ""]
+    return L + runs_table(tot)
+
+
+def cost_table(studies):
+    """| quantity [| element] | 10 %: Nd, time | ...: the cost of each level per study."""
+    many = len(studies) > 1
+    L = ["| quantity | " + ("element | " if many else "")
+         + " | ".join(f"{lvl(x)}: Nd, time" for x in LEVELS) + " |",
+         "|---|" + ("---|" if many else "") + "---|" * len(LEVELS)]
+    for k, name, _ in QUANTITIES:
+        for tot in studies:
+            cells = []
+            Lk = tot["against"][k]
+            for x in LEVELS:
+                c = tot["costs"][k][x]
+                if Lk["relative_error"] > x / 3:
+                    cells.append(f"not resolved (q* known to ± {lvl(Lk['relative_error'])})")
+                elif c is None:
+                    cells.append("not reached")
+                elif c["projected"]:
+                    cells.append(f"projected: Nd ≈ {c['nd']:.0f}, ≈ {c['time']:.2g} s")
+                else:
+                    cells.append(f"Nd = {c['nd']}, {c['time']:.2g} s")
+            L.append(f"| {md(name)} | " + (f"{tot['element']} | " if many else "")
+                     + " | ".join(cells) + " |")
+    return L
+
+
+def runs_table(tot):
+    """The runs of a total-error study, one row per Nd."""
+    L = ["| Nd | dofs | whole process, s | set-up, s | solve, s | Newton steps | max "
+         "residual | peak memory, MiB (all ranks) | max abs(u) | N | J | error max abs(u) | "
+         "error N | error J |", "|---|" + "---|" * 13]
     for r in tot["rows"]:
         if r["status"] != "ok":
             L.append(f"| {r['nd']} | – | {r['status']}: {r.get('error') or ''} |"
@@ -666,6 +726,57 @@ def total_md(tot):
                  f"{v['umax']:.6e} | {v['force']:.6f} | {v['energy']:.8e} | "
                  f"{e(er.get('umax'))} | {e(er.get('force'))} | {e(er.get('energy'))} |")
     return L
+
+
+def quadratic_md(q1, q2, own):
+    """The q2 element against q1 (both scored against the common continuum values, q1 and
+    q2 as returned by compare_elements; own: the q2 study's own continuum values)."""
+    ok = [r for r in q2["rows"] if r["status"] == "ok" and "err" in r]
+    if not ok:
+        return []
+    nds = ", ".join(str(r["nd"]) for r in q2["rows"])
+    L = ["", "## The quadratic element (-element q2) against q1", "",
+         f"The same study with the 27-node hexahedron (`mpirun -n {q2['np']} python -m "
+         f"contact -nd N -element q2`: N elements per unit length, their nodes the vertices "
+         f"of the mesh refined once, so q2 at N has the unknowns of q1 at 2N), N = {nds}. "
+         "Both elements' errors here are against one continuum value per quantity: the "
+         "extrapolation (of the q1 or the q2 sequence) with the smaller error estimate "
+         "(table below).", "",
+         "![total error against whole-process time, q1 and q2]"
+         "(report/total_error_vs_time_elements.png)", ""]
+    L += cost_table([q1, q2])
+    L += ["", "### Continuum values from each element's sequence", "",
+          "| quantity | from q2 | its error estimate, order | from q1 | its error estimate, "
+          "order | q2 - q1 | used |", "|---|---|---|---|---|---|---|"]
+    for k, name, _ in QUANTITIES:
+        a, b = own[k], q1["limits"][k]
+        L.append(f"| {md(name)} | {a['value']:.7e} | {lvl(a['relative_error'])}, "
+                 + (f"{a['order']:.2f}" if a["order"] else "–")
+                 + f" | {b['value']:.7e} | {lvl(b['relative_error'])}, "
+                 + (f"{b['order']:.2f}" if b["order"] else "–")
+                 + f" | {lvl((a['value'] - b['value']) / abs(b['value']))} | "
+                 f"{q1['against'][k]['element']} |")
+    L += ["", "How each q2 value was extrapolated: "
+          + "; ".join(f"{name}: {own[k]['method']}" for k, name, _ in QUANTITIES) + "."]
+    byn = {r["nd"]: r["values"]["umax"] for r in ok}
+    if all(n in byn for n in (2, 4, 8)):
+        L += ["", "CalculiX C3D20R (20-node, reduced integration, face-to-face penalty "
+              "contact; issue 25, not rerun) against q2 at the same N, max |u|:", "",
+              "| N | C3D20R | q2 | q2 / C3D20R |", "|---|---|---|---|"]
+        for n, c in zip((2, 4, 8), C3D20R):
+            L.append(f"| {n} | {c:.4e} | {byn[n]:.4e} | {byn[n] / c:.4f} |")
+    L += ["", "### The q2 runs", ""] + runs_table(q2)
+    return L
+
+
+def compare_elements(q1, q2):
+    """Copies of the two studies scored against common_limits (one q* per quantity)."""
+    import copy
+    common = common_limits(q1, q2)
+    a, b = copy.deepcopy(q1), copy.deepcopy(q2)
+    score(a, common)
+    score(b, common)
+    return a, b
 
 
 def make_run_md(mr):
@@ -721,6 +832,10 @@ def main(argv=None):
     ap.add_argument("--total-nd", type=int, nargs="*", default=None,
                     help="sizes of the total-error study (default "
                          f"{' '.join(map(str, TOTAL_NDS))}; --quick: 2 3 4 6 8; none: skip it)")
+    ap.add_argument("--q2-nd", type=int, nargs="*", default=None,
+                    help="sizes of the same study with -element q2 (default "
+                         f"{' '.join(map(str, Q2_NDS))}; --quick, --smoke: 1 2 3 4; none: "
+                         "skip it)")
     ap.add_argument("--total-np", type=int, default=2,
                     help="MPI ranks of the total-error runs (default 2)")
     ap.add_argument("--total-timeout", type=int, default=900,
@@ -753,6 +868,8 @@ def main(argv=None):
     nds = args.nd or ([2] if args.smoke else [2, 3] if args.quick else [6, 12])
     total_nds = args.total_nd if args.total_nd is not None else (
         [2, 3, 4, 6, 8] if args.smoke or args.quick else TOTAL_NDS)
+    q2_nds = args.q2_nd if args.q2_nd is not None else (
+        [1, 2, 3, 4] if args.smoke or args.quick else Q2_NDS)
     if args.smoke:
         args.total_np = 1
     t0 = time.perf_counter()
@@ -805,20 +922,31 @@ def main(argv=None):
         if tot["limits"]:
             plot_total(tot, os.path.join(results, "total_error_vs_time.png"))
             log(f"wrote {os.path.join(results, 'total_error_vs_time.png')}")
+    quad = None
+    if q2_nds:
+        log(f"== total error, -element q2, Nd = {' '.join(map(str, q2_nds))}")
+        q2 = total_study(sorted(q2_nds), args, log, element="q2")
+        if q2["limits"] and tot["limits"]:
+            a, b = compare_elements(tot, q2)
+            quad = (a, b, q2["limits"])
+            plot_total(a, os.path.join(results, "total_error_vs_time_elements.png"), [b])
+            log(f"wrote {os.path.join(results, 'total_error_vs_time_elements.png')}")
 
     elapsed = time.perf_counter() - t0
     cases = [c for d in sizes.values() for c in d["refs"] + [x for v in d["sweeps"].values()
-                                                            for x in v]] + tot["rows"]
+                                                            for x in v]] + tot["rows"] + (
+        quad[1]["rows"] if quad else [])
     scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time + sum(
         sum(x["walls"]) for x in (mr or {}).values())
-    write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable)
-    save_data(sizes, tot, mr, elapsed, os.path.join(results, "data.json"))
+    write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable, quad)
+    save_data(sizes, tot, mr, elapsed, os.path.join(results, "data.json"),
+              quad[1] if quad else None)
     log(f"wrote {args.record} (this run {elapsed / 60:.1f} min; from scratch "
         f"{scratch / 60:.1f} min)")
     return 0
 
 
-def save_data(sizes, tot, mr, elapsed, path):
+def save_data(sizes, tot, mr, elapsed, path, q2=None):
     """The numbers behind the report (no arrays), for later comparison."""
     def strip(c):
         keep = ("name", "status", "tol", "time", "err", "opts", "why", "error", "label")
@@ -829,6 +957,7 @@ def save_data(sizes, tot, mr, elapsed, path):
             d["converged"] = c["summary"]["converged"]
         return d
     data = {"date": harness.provenance()["date"], "elapsed_s": elapsed, "total": tot,
+            "total_q2": q2,
             "make_run": mr,
             "sizes": {nd: {"dofs": d["dofs"], "agreement": d["agreement"],
                            "refs": [strip(r) for r in d["refs"]],

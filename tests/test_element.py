@@ -181,7 +181,7 @@ def test_auto_picks(mode, nu, given, want):
 
 def test_bad_element_is_refused():
     sc = paper_scene(nd=1)
-    sc["mesh"]["element"] = "q2"
+    sc["mesh"]["element"] = "q3"
     from contact import scene as scenes
-    with pytest.raises(SceneError, match="element must be auto, q1, bbar, got 'q2'"):
+    with pytest.raises(SceneError, match="element must be auto, q1, bbar, q2, got 'q3'"):
         scenes.validate(sc)

@@ -148,6 +148,8 @@ def test_report(tmp_path):
     assert float(table_rows(md, "fast")[0][5]) < 1e-5
     # the total-error study: one run per Nd (the paper's unknowns), the energy converging
     # from above to a continuum value below the finest run, its cost table filled
+    full = md
+    md, _, quad = md.partition("## The quadratic element")
     runs = {nd: [r for r in table_rows(md, nd) if len(r) == 14] for nd in (2, 3, 4, 6, 8)}
     assert all(len(r) == 1 for r in runs.values()), runs
     assert int(runs[2][0][1]) == n_p(2) and int(runs[8][0][1]) == n_p(8)
@@ -157,9 +159,19 @@ def test_report(tmp_path):
     assert float(cont[1]) < J[-1] and float(cont[1]) > J[-1] - (J[0] - J[-1])
     cost, = [r for r in table_rows(md, "energy J") if len(r) == 4]
     assert cost[1].startswith("Nd = ")                          # 10 %: reached
-    row, = table_rows(md, "with figures (`h5,xdmf,json,png`)")
+    row, = table_rows(full, "with figures (`h5,xdmf,json,png`)")
     assert float(row[1]) > 0
-    for f in ("error_vs_time_nd2.png", "total_error_vs_time.png", "data.json"):
+    # the same with -element q2 at N = 1 .. 4: the unknowns of q1 at 2 N, J falling, below
+    # q1's at the same unknowns (N = 2, 4 against Nd = 4, 8), a cost row per element
+    q2 = {n: [r for r in table_rows(quad, n) if len(r) == 14] for n in (1, 2, 3, 4)}
+    assert all(len(r) == 1 for r in q2.values()), q2
+    assert all(int(q2[n][0][1]) == n_p(2 * n) for n in q2)
+    J2 = [float(q2[n][0][10]) for n in (1, 2, 3, 4)]
+    assert all(a > b for a, b in zip(J2, J2[1:]))
+    assert J2[1] < J[2] and J2[3] < J[4]
+    assert [r[1] for r in table_rows(quad, "energy J") if len(r) == 5] == ["q1", "q2"]
+    for f in ("error_vs_time_nd2.png", "total_error_vs_time.png",
+              "total_error_vs_time_elements.png", "data.json"):
         assert os.path.getsize(tmp_path / "report" / f) > 0
     data = json.loads(read(tmp_path / "report" / "data.json"))
     assert data["sizes"]["2"]["agreement"]["u"] < 1e-8

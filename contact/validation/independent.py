@@ -16,6 +16,13 @@ solver next to it):
   split of the energy into deviatoric and volumetric parts.
   Local node ``q = qx + 2 qy + 4 qz`` sits at the reference corner
   ``(2qx-1, 2qy-1, 2qz-1)``; N_q = 1/8 (1 + xi_q xi)(1 + eta_q eta)(1 + zeta_q zeta).
+* ``mesh.element: q2``: 27-node triquadratic Lagrange hexahedra on the grid of
+  ``2 cells_per_nd nd`` nodal intervals per direction (the same node numbering), local
+  node ``q = qx + 3 qy + 9 qz`` at ``(qx - 1, qy - 1, qz - 1)``, shape functions the
+  products of 1D Lagrange polynomials through -1, 0, 1 (written as products over the
+  other nodes), 3x3x3 Gauss-Legendre (numpy.polynomial.legendre.leggauss); faces of 9
+  nodes, biquadratic, 3x3 Gauss: the consistent int N_j ds (the package lumps by
+  Gauss-Lobatto: the same numbers on a flat face, another formula).
 * Face integrals (consistent tractions, contact weights): bilinear faces, 2x2 Gauss,
   surface element |dx/ds x dx/dt|. Contact weight w_j = int N_j ds over the contact
   face (the trapezoidal rule on a uniform grid).
@@ -41,7 +48,7 @@ import scipy.sparse as sp
 
 from .socp import solve_coulomb, solve_tresca
 
-__all__ = ["grid", "shape_q1", "strain_matrix", "stiffness", "hooke", "face_integral",
+__all__ = ["grid", "grid_q2", "shape_q1", "shape_lagrange", "strain_matrix", "stiffness", "hooke", "face_integral",
            "volume_integral", "plane_faces", "discretise", "solve", "energy", "rigid_modes",
            "friction_at"]
 
@@ -78,6 +85,49 @@ def grid(lower, upper, ncell):
     return xyz, cells
 
 
+def grid_q2(lower, upper, ncell):
+    """Nodes (n,3) of the q2 grid (2 ncell intervals per direction), x fastest; cells
+    (nc,27) in local order q = qx + 3 qy + 9 qz."""
+    nx, ny, nz = (int(c) for c in ncell)
+    xyz, _ = grid(lower, upper, 2 * np.asarray(ncell))
+    node = lambda i, j, k: i + (2 * nx + 1) * (j + (2 * ny + 1) * k)  # noqa: E731
+    k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    i, j, k = 2 * i.ravel(), 2 * j.ravel(), 2 * k.ravel()
+    cells = np.stack([node(i + qx, j + qy, k + qz)
+                      for qz in range(3) for qy in range(3) for qx in range(3)], axis=1)
+    return xyz, cells
+
+
+def shape_lagrange(points):
+    """Tensor-product quadratic Lagrange shape functions at reference points (g, dim):
+    N (g, 3^dim) and dN/dxi (g, 3^dim, dim); node q = sum_d q_d 3^d at xi_d = q_d - 1."""
+    points = np.atleast_2d(points)
+    g, dim = points.shape
+    nodes1 = np.array([-1.0, 0.0, 1.0])
+
+    def l1(t, a):                              # 1D: prod_{m != a} (t - x_m) / (x_a - x_m)
+        others = [m for m in range(3) if m != a]
+        val = np.prod([(t - nodes1[m]) / (nodes1[a] - nodes1[m]) for m in others], axis=0)
+        der = sum(np.prod([(t - nodes1[m]) / (nodes1[a] - nodes1[m])
+                           for m in others if m != n], axis=0) / (nodes1[a] - nodes1[n])
+                  for n in others)
+        return val, der
+
+    q = np.array(np.meshgrid(*([np.arange(3)] * dim), indexing="ij")).reshape(dim, -1).T
+    q = q[:, ::-1]                                               # first coordinate fastest
+    V = np.empty((g, q.shape[0], dim))
+    D = np.empty((g, q.shape[0], dim))
+    for d in range(dim):
+        for a in range(3):
+            v, dv = l1(points[:, d], a)
+            V[:, q[:, d] == a, d] = v[:, None]
+            D[:, q[:, d] == a, d] = dv[:, None]
+    N = V.prod(axis=2)
+    dN = np.stack([D[:, :, d] * np.delete(V, d, axis=2).prod(axis=2) for d in range(dim)],
+                  axis=2)
+    return N, dN
+
+
 # ---------------------------------------------------------------------- elements
 def _corners(dim):
     """Reference corners (2^dim, dim), first coordinate fastest."""
@@ -100,9 +150,17 @@ def shape_q1(points):
     return N, dN
 
 
-def _gauss(dim):
-    pts = np.array(np.meshgrid(*([GAUSS] * dim), indexing="ij")).reshape(dim, -1).T
-    return pts, np.ones(pts.shape[0])
+def _gauss(dim, n=2):
+    """n-point Gauss-Legendre product rule in dim dimensions: points (g, dim), weights."""
+    x, w = (GAUSS, np.ones(2)) if n == 2 else np.polynomial.legendre.leggauss(n)
+    pts = np.array(np.meshgrid(*([x] * dim), indexing="ij")).reshape(dim, -1).T
+    wts = np.array(np.meshgrid(*([w] * dim), indexing="ij")).reshape(dim, -1).T.prod(axis=1)
+    return pts, wts
+
+
+def _shape(points, n_nodes):
+    """q1 or q2 shape functions by the number of nodes of a cell or face."""
+    return shape_q1(points) if n_nodes in (4, 8) else shape_lagrange(points)
 
 
 def hooke(young, poisson):
@@ -118,10 +176,12 @@ def hooke(young, poisson):
 
 
 def _geometry(xyz, cells):
-    """Per cell and Gauss point: dN/dx (nc, g, 8, 3), det J * weight (nc, g), N (g, 8)."""
-    pts, wts = _gauss(3)
-    N, dN = shape_q1(pts)                                       # (g,8), (g,8,3)
-    Xe = xyz[cells]                                             # (nc, 8, 3)
+    """Per cell and Gauss point: dN/dx (nc, g, k, 3), det J * weight (nc, g), N (g, k)
+    for cells of k = 8 (2x2x2 Gauss) or 27 nodes (3x3x3)."""
+    k = cells.shape[1]
+    pts, wts = _gauss(3, 2 if k == 8 else 3)
+    N, dN = _shape(pts, k)                                      # (g,k), (g,k,3)
+    Xe = xyz[cells]                                             # (nc, k, 3)
     J = np.einsum("gqi,cqj->cgji", dN, Xe)                      # J[j,i] = dx_j/dxi_i
     det = np.linalg.det(J)
     if np.any(det <= 0):
@@ -132,9 +192,9 @@ def _geometry(xyz, cells):
 
 
 def strain_matrix(dNdx):
-    """B (..., 6, 24) from dN/dx (..., 8, 3); strain = B u_e, u_e = [u_0x, u_0y, ...]."""
-    sh = dNdx.shape[:-2]
-    B = np.zeros(sh + (6, 8, 3))
+    """B (..., 6, 3k) from dN/dx (..., k, 3); strain = B u_e, u_e = [u_0x, u_0y, ...]."""
+    sh, k = dNdx.shape[:-2], dNdx.shape[-2]
+    B = np.zeros(sh + (6, k, 3))
     dx, dy, dz = dNdx[..., 0], dNdx[..., 1], dNdx[..., 2]
     B[..., 0, :, 0] = dx
     B[..., 1, :, 1] = dy
@@ -142,11 +202,11 @@ def strain_matrix(dNdx):
     B[..., 3, :, 1], B[..., 3, :, 2] = dz, dy          # gamma_yz
     B[..., 4, :, 0], B[..., 4, :, 2] = dz, dx          # gamma_xz
     B[..., 5, :, 0], B[..., 5, :, 1] = dy, dx          # gamma_xy
-    return B.reshape(sh + (6, 24))
+    return B.reshape(sh + (6, 3 * k))
 
 
 def _cell_dofs(cells):
-    return (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], 24)
+    return (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], -1)
 
 
 def bbar_strain_matrix(dNdx, dv):
@@ -162,19 +222,21 @@ def bbar_strain_matrix(dNdx, dv):
 
 def stiffness(xyz, cells, young, poisson, element="q1"):
     """Global stiffness K (3n, 3n) CSR, no boundary conditions; element q1 (B at the
-    Gauss points) or bbar (bbar_strain_matrix)."""
+    Gauss points) or bbar (bbar_strain_matrix); q2 for cells of 27 nodes (B at the
+    Gauss points)."""
     dNdx, dv, _ = _geometry(xyz, cells)
-    if element == "q1":
+    if element in ("q1", "q2"):
         B = strain_matrix(dNdx)                                 # (nc, g, 6, 24)
     elif element == "bbar":
         B = bbar_strain_matrix(dNdx, dv)
     else:
         raise NotImplementedError(f"independent reference: element {element!r}")
     D = hooke(young, poisson)
-    Ke = np.einsum("cgki,kl,cglj,cg->cij", B, D, B, dv)         # (nc, 24, 24)
+    Ke = np.einsum("cgki,kl,cglj,cg->cij", B, D, B, dv)         # (nc, 3k, 3k)
     dofs = _cell_dofs(cells)
-    rows = np.repeat(dofs, 24, axis=1).ravel()
-    cols = np.tile(dofs, (1, 24)).ravel()
+    m = dofs.shape[1]
+    rows = np.repeat(dofs, m, axis=1).ravel()
+    cols = np.tile(dofs, (1, m)).ravel()
     n = 3 * xyz.shape[0]
     K = sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
     K.sum_duplicates()
@@ -191,25 +253,28 @@ def volume_integral(xyz, cells, density):
 
 
 def plane_faces(xyz, cells, axis, value, tol):
-    """Cell faces (nf, 4) lying in the plane x_axis = value; face corner order
-    (s fastest) over the two other axes in increasing order (a bilinear quad)."""
+    """Cell faces (nf, 4) (q1) or (nf, 9) (q2) lying in the plane x_axis = value; face
+    node order (s fastest) over the two other axes in increasing order."""
     a, b = [d for d in range(3) if d != axis]
+    m = 2 if cells.shape[1] == 8 else 3                  # nodes per edge
     out = []
-    for side in (0, 1):
-        # local corners q = qx + 2 qy + 4 qz with q_axis = side, ordered (q_a fastest)
-        loc = [sum(((side if d == axis else (p if d == a else r)) << d) for d in range(3))
-               for r in (0, 1) for p in (0, 1)]
+    for side in (0, m - 1):
+        # local nodes q = qx + m qy + m^2 qz with q_axis = side, ordered (q_a fastest)
+        loc = [sum((side if d == axis else (p if d == a else r)) * m ** d for d in range(3))
+               for r in range(m) for p in range(m)]
         f = cells[:, loc]
         on = np.all(np.abs(xyz[f, axis] - value) <= tol, axis=1)
         out.append(f[on])
-    return np.concatenate(out) if out else np.zeros((0, 4), dtype=int)
+    return np.concatenate(out) if out else np.zeros((0, m * m), dtype=int)
 
 
 def face_integral(xyz, faces, n_nodes):
-    """int N_a ds over the given bilinear faces (nf, 4), per node (n_nodes,)."""
-    pts, wts = _gauss(2)
-    N, dN = shape_q1(pts)                                       # (g,4), (g,4,2)
-    Xf = xyz[faces]                                             # (nf, 4, 3)
+    """int N_a ds over the given bilinear (nf, 4) or biquadratic (nf, 9) faces, per node
+    (n_nodes,): 2x2 or 3x3 Gauss."""
+    k = faces.shape[1]
+    pts, wts = _gauss(2, 2 if k == 4 else 3)
+    N, dN = _shape(pts, k)                                      # (g,k), (g,k,2)
+    Xf = xyz[faces]                                             # (nf, k, 3)
     ts = np.einsum("gq,fqi->fgi", dN[:, :, 0], Xf)
     tt = np.einsum("gq,fqi->fgi", dN[:, :, 1], Xf)
     da = np.linalg.norm(np.cross(ts, tt), axis=2) * wts[None, :]   # (nf, g)
@@ -263,13 +328,13 @@ def discretise(scene):
         raise NotImplementedError("independent reference: foundation z <= 0 only "
                                   "(normal +z through z = 0)")
     mat = scene["material"]
-    xyz, cells = grid(lower, upper, ncell)
-    n = xyz.shape[0]
-    tol = 1e-10 * float(np.max(upper - lower))
     element = scene["mesh"].get("element", "q1")
     if element == "auto":
         raise NotImplementedError("independent reference: name the element (mesh.element "
-                                  "q1 or bbar), not auto")
+                                  "q1, bbar or q2), not auto")
+    xyz, cells = (grid_q2 if element == "q2" else grid)(lower, upper, ncell)
+    n = xyz.shape[0]
+    tol = 1e-10 * float(np.max(upper - lower))
     K = stiffness(xyz, cells, float(mat["young"]), float(mat["poisson"]), element)
     f = np.zeros((n, 3))
     bf = np.asarray(scene.get("body_force", [0.0, 0.0, 0.0]), dtype=float)
