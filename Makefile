@@ -18,7 +18,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 #: the focused subset run on 4 ranks too (ranks without contact nodes, almost empty ranks)
-TESTS4   ?= tests/test_ranks.py tests/test_transfer.py tests/test_multigrid.py tests/test_jacobian.py tests/test_newton_globalisation.py tests/test_element.py tests/test_mixed.py
+TESTS4   ?= tests/test_ranks.py tests/test_transfer.py tests/test_multigrid.py tests/test_jacobian.py tests/test_newton_globalisation.py tests/test_element.py tests/test_mixed.py tests/test_quadratic.py
 
 # $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
 # only when one is missing)

@@ -20,6 +20,11 @@ Parts (--part, default all):
           Pn the largest rank's peak; bytes per dof of all ranks together at Nd = 40 on 2
           ranks (--kb-nd); the linear solve's preconditioners side by side (CG + GAMG, the
           LSE, and CG + geometric multigrid on the mesh hierarchy, the default).
+  quadratic  the 27-node element (-element q2) at N = 8 and 12 (--q2-nd) on 2 ranks: the
+          default solver (its linear solves' multigrid on the mesh hierarchy: q2 -> q1 on
+          the same nodes (the hierarchy's finest interpolation is the exact embedding of the
+          coarse q1 space), then q1 levels), the same with GAMG, and the no-contact solves
+          (CG + multigrid; CG + GAMG, q2's own LSE): set-up and solve in LSE of the q2 mesh.
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
 free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
@@ -263,10 +268,42 @@ def part_scaling(args, lines):
     lines.append("")
 
 
+def part_quadratic(args, lines):
+    q2 = ["-element", "q2"]
+    lines += ["## The quadratic element (-element q2): its solves in its own LSE, 2 ranks", "",
+              "LSE here: one CG + GAMG solve (rtol 1e-8) of the q2 mesh without contact "
+              "(runs/scenes/paper_beam_linear.yaml -element q2), same ranks, same run.", "",
+              "| N | case | dofs | set-up, s | solve, s | Newton steps / KSP its | set-up / "
+              "LSE | solve / LSE | peak memory per rank, MiB |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for nd in args.q2_nd:
+        cases = [("no contact, CG + GAMG (the LSE)", f"q2-lse-nd{nd}-np2",
+                  q2 + ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8",
+                        "-elastic_pc_type", "gamg"]),
+                 ("no contact, CG + multigrid", f"q2-linear-mg-nd{nd}-np2",
+                  q2 + ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"]),
+                 ("default (newton, multigrid)", f"q2-newton-nd{nd}-np2", q2 + NEWTON),
+                 ("newton, -newton_pc_type gamg", f"q2-newton-gamg-nd{nd}-np2",
+                  q2 + NEWTON + ["-newton_pc_type", "gamg"])]
+        unit = None
+        for name, case, opts in cases:
+            s = run(args, case, nd, opts, np_=2).summary
+            t = s["time_s"]
+            unit = unit or t["solve"]
+            its = s["iterations"]
+            lines.append(f"| {nd} | {name} | {s['dofs']} | {t['setup']:.2f} | {t['solve']:.2f} "
+                         f"| {its['inner_total']} / {its['ksp_total']} | "
+                         f"{t['setup'] / unit:.2f} | {t['solve'] / unit:.2f} | "
+                         f"{' / '.join(f'{m:.0f}' for m in s['peak_rss_mib'])} |")
+    lines.append("")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
-                                                       "ranks", "scaling"])
+                                                       "ranks", "scaling", "quadratic"])
+    ap.add_argument("--q2-nd", type=int, nargs="+", default=[8, 12],
+                    help="sizes (N) of the quadratic part")
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
     ap.add_argument("--modes", nargs="+", default=["newton", "fast"], choices=list(MODES),
                     help="the modes of the table1 part")
@@ -288,6 +325,7 @@ def main(argv=None):
             ap.error("--smoke needs --out-dir (it must not write into runs/)")
         args.nd, args.equal_nd, args.ranks_nd = [2], 2, [2]
         args.scaling_nd, args.kb_nd, args.scaling_ranks = 4, 4, [1, 2]
+        args.q2_nd = [2]
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
     args.record = args.record or (os.path.join(args.out_dir, "bench.md") if args.smoke else
                                   os.path.join(ROOT, "runs", "results", "bench.md"))
@@ -296,7 +334,7 @@ def main(argv=None):
              + harness.provenance_lines(1, make="bench", argv=argv)
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
-             "ranks": part_ranks, "scaling": part_scaling}
+             "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)

@@ -47,17 +47,20 @@ def solve(sc):
     return pr, time.perf_counter() - t0
 
 
-def frictionless_study(nds, d=0.04, nu=0.3):
+def frictionless_study(nds, d=0.04, nu=0.3, element=None):
     rows = []
     for nd in nds:
-        pr, t = solve(hertz_scene(nd, nu=nu, d=d))
+        sc = hertz_scene(nd, nu=nu, d=d)
+        if element:
+            sc["mesh"]["element"] = element
+        pr, t = solve(sc)
         a = analyse(pr, nu)
         delta = d + approach_correction(a["P"], nu)
         a.update(nd=nd, h=1.0 / (2 * nd), dofs=pr.n_dofs, time=t, delta=delta,
                  P_hertz=th.hertz_force(delta, R_SPHERE, 1.0, nu),
                  its=pr.iterations(), residual=max(pr.residuals.values()))
         rows.append(a)
-        PETSc.Sys.Print(f"hertz nd={nd}: P={a['P']:.5e} a_fit={a['a_fit']:.4f} "
+        PETSc.Sys.Print(f"hertz {element or ''} nd={nd}: P={a['P']:.5e} a_fit={a['a_fit']:.4f} "
                         f"a_H={a['a_hertz']:.4f} p0={a['p0_fit']:.4f} p0_H={a['p0_hertz']:.4f}"
                         f" P_H(delta)={a['P_hertz']:.5e} t={t:.1f}s")
     return rows
@@ -174,9 +177,39 @@ def _other_plots(plt, curve, spence, outdir):
         plt.close(fig)
 
 
-def _hertz_section(rows):
-    L = ["## Hertz, frictionless (nu = 0.3)",
-         "",
+def _q2_section(rows, q2):
+    """Hertz with -element q2 against the default element at the same core cells."""
+    L = ["## Hertz with the quadratic element (-element q2), frictionless (nu = 0.3)", "",
+         "The same scene and analysis with the 27-node element: nd counts its elements "
+         "(the core (2 nd)^3 elements, their nodes the vertices of the gmsh mesh at nd "
+         "refined once, so its contact nodes are twice as dense as q1's at the same nd; "
+         "contact weights: Gauss-Lobatto 1/36, 4/36, 16/36).", ""]
+    L += _hertz_section(q2, title=None)[:-3]
+    q1 = {a["nd"]: a for a in rows}
+    both = [a for a in q2 if a["nd"] in q1]
+    if both:
+        L += ["", "At the same core cells (nd), the error against Hertz of each element "
+              "(q1: the table above):", "",
+              "| nd | err a q1 | err a q2 | err p0 q1 | err p0 q2 | err P q1 | err P q2 | "
+              "dofs q1 | dofs q2 | time q1, s | time q2, s |",
+              "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for b in both:
+            a = q1[b["nd"]]
+            (a1, p1, P1), (a2, p2, P2) = _errors(a), _errors(b)
+            L.append(f"| {b['nd']} | {a1:+.2%} | {a2:+.2%} | {p1:+.2%} | {p2:+.2%} | "
+                     f"{P1:+.2%} | {P2:+.2%} | {a['dofs']} | {b['dofs']} | {a['time']:.1f} | "
+                     f"{b['time']:.1f} |")
+    return L + [""]
+
+
+def _errors(a):
+    """Relative errors against Hertz: contact radius, peak pressure (fits), force."""
+    return (a["a_fit"] / a["a_hertz"] - 1, a["p0_fit"] / a["p0_hertz"] - 1,
+            a["P"] / a["P_hertz"] - 1)
+
+
+def _hertz_section(rows, title="## Hertz, frictionless (nu = 0.3)"):
+    L = ([title, ""] if title else []) + [
          "a and p0: least-squares fit of p^2 = p0^2 (1 - r^2/a^2) to the nodal pressures "
          "(contact/validation/theory.py); Hertz values at the computed force P "
          "(a = (3PR/4E*)^(1/3), p0 = 3P/(2 pi a^2)). Force: Hertz P(delta) = 4/3 E* "
@@ -190,9 +223,7 @@ def _hertz_section(rows):
          "time, s |",
          "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for a in rows:
-        ea = a["a_fit"] / a["a_hertz"] - 1
-        ep = a["p0_fit"] / a["p0_hertz"] - 1
-        eP = a["P"] / a["P_hertz"] - 1
+        ea, ep, eP = _errors(a)
         L.append(f"| {a['nd']} | {a['h']:.4f} | {a['dofs']} | {a['nodes_in_contact']} | "
                  f"{a['P']:.5e} | {a['a_fit']:.4f} | {a['a_hertz']:.4f} | {ea:+.2%} | "
                  f"{a['p0_fit']:.4f} | {a['p0_hertz']:.4f} | {ep:+.2%} | {a['p_max']:.4f} | "
@@ -202,7 +233,7 @@ def _hertz_section(rows):
     return L
 
 
-def write_report(path, args, rows, curve, curve_t, spence, bem, total):
+def write_report(path, args, rows, curve, curve_t, spence, bem, total, q2=()):
     L = ["# Validation against closed-form contact solutions", ""]
     L += harness.provenance_lines(PETSc.COMM_WORLD.getSize(), make="validate")
     L += [f"- Time: {total:.0f} s in all.", "",
@@ -223,6 +254,8 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
         for dl, P, PH in curve:
             L.append(f"| {dl:.5f} | {P:.5e} | {PH:.5e} | {P / PH - 1:+.2%} |")
         L += ["", "![force-indentation](validation/hertz_force_indentation.png)", ""]
+    if q2:
+        L += _q2_section(rows, q2)
     if spence:
         L += ["## Coulomb friction: stick zone after monotonic loading (Spence's problem)",
               "",
@@ -275,6 +308,8 @@ def write_report(path, args, rows, curve, curve_t, spence, bem, total):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nds", default="2,4,6,8")
+    ap.add_argument("--q2-nds", default="2,3,4",
+                    help="Hertz with -element q2 at these nd ('': skip)")
     ap.add_argument("--curve-nd", type=int, default=4)
     ap.add_argument("--curve-steps", type=int, default=5)
     ap.add_argument("--spence-nd", type=int, default=6)
@@ -300,14 +335,17 @@ def main():
     cases = SPENCE_CASES
     if args.quick:
         args.nds, args.curve_nd, args.spence_nd, args.spence_steps = "2,3", 2, 3, 3
+        args.q2_nds = "1,2"
     if args.smoke:
-        args.nds, args.curve_nd, args.curve_steps = "2", 2, 2
+        args.nds, args.curve_nd, args.curve_steps, args.q2_nds = "2", 2, 2, "2"
         args.spence_nd, args.spence_steps, args.bem_n, args.bem_steps = 2, 3, 20, 10
         cases = [c for c in SPENCE_CASES if published(*c) is not None]
     t0 = time.perf_counter()
-    rows, curve, curve_t = [], [], 0
+    rows, curve, curve_t, q2 = [], [], 0, []
     if not args.spence_only:
         rows = frictionless_study([int(n) for n in args.nds.split(",")])
+        if args.q2_nds:
+            q2 = frictionless_study([int(n) for n in args.q2_nds.split(",")], element="q2")
         if args.curve_steps:
             curve, curve_t = curve_study(args.curve_nd, args.curve_steps)
     spence = spence_study(args.spence_nd, args.spence_steps, cases)
@@ -316,7 +354,7 @@ def main():
     if PETSc.COMM_WORLD.getRank() == 0:
         plots(rows, curve, spence, os.path.join(os.path.dirname(args.out), "validation"))
         write_report(args.out, args, rows, curve, curve_t, spence, bem,
-                     time.perf_counter() - t0)
+                     time.perf_counter() - t0, q2)
         print(f"wrote {args.out}")
 
 
