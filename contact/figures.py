@@ -174,7 +174,8 @@ def _panels(face, n=2):
 
 
 def _title(fig, data, what):
-    fig.suptitle(f"{data['name']}, Nd = {data['nd']}: {what}", fontsize=12,
+    el = f" ({data['element']})" if data.get("element", "q1") != "q1" else ""
+    fig.suptitle(f"{data['name']}, Nd = {data['nd']}{el}: {what}", fontsize=12,
                  y=1.0 - 0.12 / fig.get_figheight(), va="top")
 
 

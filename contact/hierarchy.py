@@ -148,7 +148,9 @@ class MeshHierarchy:
             return (f"box built whole on rank 0 at Nd = {nd0}, distributed "
                     f"({self.partitioner})")
         return (f"box built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
-                f"refined {self.refinements} times in parallel")
+                f"refined {self.refinements} times in parallel"
+                + (f" (q2: elements the cells at Nd = {self.levels[-2].nd}, nodes the "
+                   f"vertices at Nd = {self.levels[-1].nd})" if self.quadratic else ""))
 
     def release_below(self, j):
         """Free the meshes of the levels coarser than j (after the coarse-to-fine start);

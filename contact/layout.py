@@ -171,6 +171,7 @@ def figure_data(problem, summary):
         return None
     steps = getattr(problem, "increments", None) or []
     return {"name": summary.get("scene", "scene"), "nd": summary.get("nd"),
+            "element": summary.get("element", "q1"),
             "normal": np.asarray(problem.normal, dtype=float),
             "point": np.asarray(problem.scene.get("contact", {}).get("foundation", {})
                                 .get("point", [0.0, 0.0, 0.0]), dtype=float),
