@@ -304,8 +304,8 @@ def _smooth_error(n, element):
 def test_order_on_a_smooth_solution():
     """Where the solution is smooth q2 converges at its order: the max nodal error falls
     at least 2^2.8 per halving (measured 2^2.9, 2^3.6 at N = 1, 2, 4), q1's on the same
-    nodes about 2^2 (2^2.5, 2^2.1). (The paper's beam converges at order ~1.1 in max |u| with either
-    element: a singularity, runs/results/report.md.)"""
+    nodes about 2^2 (2^2.5, 2^2.1). (The paper's beam converges at order ~1.1 in max |u|
+    with either element: a singularity, runs/results/report.md.)"""
     e2 = [_smooth_error(n, "q2") for n in (1, 2, 4)]
     e1 = [_smooth_error(n, "q1") for n in (1, 2, 4)]
     p2 = np.log2(e2[1] / e2[2])
