@@ -3,8 +3,9 @@
 Contact nodes j in P: the vertices of the contact faces whose normal dof is not clamped.
 For each, the lumped weight w_j = int_{Gamma_c} N_j ds over the actual (bilinear) faces,
 so curved and graded faces integrate correctly (on a uniform flat face this is the
-paper's trapezoidal rule; q2: the Gauss-Lobatto weights of the 9-node faces, fem.py), the friction coefficient F_j, the initial gap gap_j, and the
-dofs of its normal and tangential components.
+paper's trapezoidal rule; q2: the Gauss-Lobatto weights of the 9-node faces, fem.py),
+the friction coefficient F_j, the initial gap gap_j, and the dofs of its normal and
+tangential components.
 
 The foundation is the half-space {(X - p) . n <= 0} behind the plane through p with unit
 normal n (the paper: p = 0, n = e_z). The body's outward normal on the contact is

@@ -23,9 +23,10 @@ from .discretisation import Discretisation, element_of
 from .hierarchy import MeshHierarchy
 
 #: the discretisation's fields, read through the problem (tests, output, transfer)
-DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic", "coords", "parts", "physical_names",
-               "clamped", "clamped_xyz", "coordinates", "has_contact_part", "normal", "cs",
-               "frame", "A", "b", "u_D", "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
+DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic",
+               "coords", "parts", "physical_names", "clamped", "clamped_xyz", "coordinates",
+               "has_contact_part", "normal", "cs", "frame", "A", "b", "u_D",
+               "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
                "to_xyz", "xyz_rows")
 
 
