@@ -312,3 +312,27 @@ def test_order_on_a_smooth_solution():
     p1 = np.log2(e1[1] / e1[2])
     assert p2 > 2.8 and 1.7 < p1 < 2.5, (e2, e1, p2, p1)
     assert e2[2] < 0.1 * e1[2]
+
+
+def test_gmsh_physical_groups_are_the_planes():
+    """A gmsh mesh with q2 (read, distributed, refined once): the parts found through its
+    physical groups on the element mesh (QuadraticCells.refined_faces) are those found
+    by planes on the node mesh: the same solution. Hertz at nd = 1."""
+    from contact.validation.hertz import hertz_scene
+    sc = hertz_scene(1)
+    sc["mesh"]["element"] = "q2"
+    sc["solver"]["mode"] = "newton"
+    planes = copy.deepcopy(sc)
+    H = sc["mesh"]["parameters"]["H"]
+    for name, plane in (("contact", ["z", 0.0]), ("top", ["z", H]), ("sym_x", ["x", 0.0]),
+                        ("sym_y", ["y", 0.0])):
+        del planes["boundary"][name]["physical"]
+        planes["boundary"][name]["plane"] = plane
+    a, b = solve(sc), solve(planes)
+    assert a.nd == 1 and a.quadratic is not None
+    sizes = [p.comm.tompi4py().allreduce(sum(f.shape[0] for f in p.parts.values()))
+             for p in (a, b)]
+    assert sizes[0] == sizes[1] > 0
+    (xa, ua), (xb, ub) = gather(a)[:2], gather(b)[:2]
+    assert np.array_equal(xa, xb) and _rel(ua, ub) < 1e-10
+    assert abs(a.normal_force() - b.normal_force()) < 1e-10 * abs(b.normal_force())
