@@ -101,9 +101,9 @@ class Discretisation:
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)
         self.quadratic = self.roles = None
         self.elements = conn
-        if self.element == "q2":
+        if self.element in fem.QUADRATIC:
             if not self.hierarchy.quadratic:
-                raise SceneError("-element q2 needs the mesh hierarchy built for it "
+                raise SceneError(f"-element {self.element} needs the mesh hierarchy built for it "
                                  "(MeshHierarchy(..., quadratic=True))")
             self.quadratic = self.hierarchy.quadratic_cells(self.level_index)
             self.elements, self.roles = self.quadratic.conn, self.quadratic.roles
@@ -141,7 +141,7 @@ class Discretisation:
         DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap)."""
         mat = self.scene["material"]
         lam, mu = fem.lame(mat["young"], mat["poisson"])
-        if self.element != "bbar" or lam <= RHO_LAMBDA_CAP * mu:
+        if self.element not in fem.PRESSURES or lam <= RHO_LAMBDA_CAP * mu:
             return None
         return fem.assemble_diagonal(self.dm, self.elements, self.coords, RHO_LAMBDA_CAP * mu,
                                      mu, self.frame, self.element)

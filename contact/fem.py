@@ -26,6 +26,15 @@ Elements (-element, ELEMENTS):
         its corner, edge and centre nodes, positive (contact weights, tractions). The
         faces are handed as the refined mesh's quadrilaterals, each node with its role
         (0 corner, 1 edge midpoint, 2 face centre of its element's face).
+  q2p1  q2's nodes and shape functions with the volumetric strain replaced by its L2
+        projection on the linear functions of the element (a discontinuous P1 pressure:
+        the Q2-P1disc mixed u-p element, pressure condensed, as bbar is Q1-P0):
+          a_e(u, v) = int_e 2 mu dev eps(u) : dev eps(v) dx + kappa D_e^T M_e^-1 D_e,
+          (D_e u)_i = int_e q_i div u dx,  (M_e)_ij = int_e q_i q_j dx,
+          q = (1, (x - x_e) / h_e, (y - y_e) / h_e, (z - z_e) / h_e),
+        x_e the element's centroid, h_e = |e|^(1/3). 4 constraints per element (27 nodes):
+        no volumetric locking, and the pair is inf-sup stable (the mixed solves of
+        contact/mixed.py keep their iteration counts as nu -> 0.5).
 """
 import numpy as np
 from mpi4py import MPI
@@ -44,7 +53,9 @@ ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
             "bbar": "trilinear hexahedron with the cell-mean volumetric strain (B-bar = Q1-P0 "
                     "u-p condensed): no volumetric locking as nu -> 0.5",
             "q2": "27-node triquadratic hexahedron, 3x3x3 Gauss, on the once-refined mesh's "
-                  "vertices: the same accuracy with far fewer unknowns"}
+                  "vertices: the same accuracy with far fewer unknowns",
+            "q2p1": "q2 with the volumetric strain projected on a linear pressure per element "
+                    "(Q2-P1disc u-p condensed): no volumetric locking, inf-sup stable"}
 
 #: cells per chunk when computing element matrices (bounds the temporaries: the element
 #: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
@@ -122,7 +133,11 @@ _N27, _DN27 = q2_shape(_GP27)
 _DNT27 = np.ascontiguousarray(_DN27.transpose(0, 2, 1))
 
 #: nodes per element, and its quadrature: (N, dN/dxi, dN/dxi transposed, weights)
-NODES = {"q1": 8, "bbar": 8, "q2": 27}
+NODES = {"q1": 8, "bbar": 8, "q2": 27, "q2p1": 27}
+#: the elements on the once-refined mesh's vertices (hierarchy.QuadraticCells)
+QUADRATIC = ("q2", "q2p1")
+#: the elements with a condensed pressure, and its functions per element (P0: 1, P1: 4)
+PRESSURES = {"bbar": 1, "q2p1": 4}
 _RULES = {8: (_N, _DN, _DNT, _W8), 27: (_N27, _DN27, _DNT27, _W27)}
 
 
@@ -174,13 +189,12 @@ def _element_stiffness(X, lam, mu, element):
     # (matmul would be 6x faster than these einsums, but it sums in another order, and
     # that round-off turned the fast mode's SSN system of tests/test_frame.py::
     # test_symmetry_plane_containing_the_normal indefinite for CG on 2 ranks)
-    if element != "bbar":
+    if element not in PRESSURES:
         K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
-    else:                     # bbar: -2 mu / 3 (div)(div) pointwise + kappa |e| div_e div_e
+    else:     # -2 mu / 3 (div)(div) pointwise + kappa D^T M^-1 D (bbar: D = int_e dN/dx)
         K = (-2.0 * mu / 3.0) * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
-        g = np.einsum("cgai,cg->cai", dNdx, wdet)                   # int_e dN_a/dx_i
-        kappa = lam + 2.0 * mu / 3.0
-        K += np.einsum("cai,cbj,c->caibj", g, g, kappa / wdet.sum(axis=1))
+        Dq = projected_divergence(X, dNdx, wdet, PRESSURES[element])  # M^-1/2 D (c, m, a, i)
+        K += (lam + 2.0 * mu / 3.0) * np.einsum("cmai,cmbj->caibj", Dq, Dq)
     K += mu * np.einsum("cgaj,cgbi,cg->caibj", dNdx, dNdx, wdet)
     lap = mu * np.einsum("cgak,cgbk,cg->cab", dNdx, dNdx, wdet)
     K[:, :, 0, :, 0] += lap
@@ -188,6 +202,38 @@ def _element_stiffness(X, lam, mu, element):
     K[:, :, 2, :, 2] += lap
     n = 3 * X.shape[1]
     return K.reshape(-1, n, n)
+
+
+def pressure_basis(X, wdet, m, points=None):
+    """The pressure functions q (c, g, m) of cells X (c, a, 3) at their Gauss points (or
+    at reference `points` (p, 3)): P0 (m = 1) 1; P1 (m = 4) 1 and (x - x_e) / h_e
+    (module docstring)."""
+    if m == 1:
+        n = wdet.shape[1] if points is None else points.shape[0]
+        return np.ones((X.shape[0], n, 1))
+    N = _RULES[X.shape[1]][0]
+    xg = np.matmul(N[None], X)                                          # (c, g, 3)
+    vol = wdet.sum(axis=1)
+    xc = np.einsum("cgi,cg->ci", xg, wdet) / vol[:, None]
+    h = np.cbrt(vol)
+    at = xg if points is None else np.matmul(q2_shape(points)[0][None], X)
+    return np.concatenate([np.ones(at.shape[:2] + (1,)),
+                           (at - xc[:, None, :]) / h[:, None, None]], axis=2)
+
+
+def projected_divergence(X, dNdx, wdet, m, with_mass=False):
+    """Dq = M^-1/2 D (c, m, a, 3) of cells X: D_i,ak = int_e q_i dN_a/dx_k, M_ij = int_e
+    q_i q_j (pressure_basis), so that Dq^T Dq = D^T M^-1 D; with_mass: also M^-1/2
+    (c, m, m) (the projection's coefficients of a divergence: M^-1/2 Dq u)."""
+    q = pressure_basis(X, wdet, m)
+    D = np.einsum("cgm,cgak,cg->cmak", q, dNdx, wdet)
+    if m == 1:
+        Mh = (wdet.sum(axis=1) ** -0.5)[:, None, None]
+    else:
+        w, V = np.linalg.eigh(np.einsum("cgm,cgn,cg->cmn", q, q, wdet))
+        Mh = np.einsum("cmk,ck,cnk->cmn", V, w ** -0.5, V)
+    Dq = np.einsum("cmn,cnak->cmak", Mh, D)
+    return (Dq, Mh) if with_mass else Dq
 
 
 def element_volume_weights(X):
@@ -372,47 +418,45 @@ def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
     return local_to_global(dm, diag.ravel())
 
 
-def cell_divergence(X):
-    """g (c, 8, 3) = int_e dN_a/dx_i dx (u -> int_e div u dx = sum g_ai u_ai) and the
-    volumes |e| (c,) of cells X (c, 8, 3)."""
-    dNdx, wdet = _geometry(X)
-    return np.einsum("cgai,cg->cai", dNdx, wdet), wdet.sum(axis=1)
-
-
-def assemble_divergence(A, conn, coords, frame=None, free=None):
-    """G (local cells x A's columns, AIJ): row e is g_e of cell_divergence (in the contact
-    frame's basis when one is given), so that (G u)_e = int_e div u dx; and the local
-    cells' volumes. Rows: the ranks' cells in order (rank r's after rank r-1's). free: a
-    local (owned + ghost) dof array, 0 at the clamped dofs, whose entries are then 0
-    (kept in the pattern)."""
-    nc = conn.shape[0]
+def assemble_divergence(A, conn, coords, m, frame=None, free=None):
+    """Gq (m local elements x A's columns, AIJ): the rows of element e are M_e^-1/2 D_e of
+    projected_divergence (m = 1: int_e div u / |e|^1/2; m = 4: the P1 pressure's), in the
+    contact frame's basis when one is given; and the local elements' volumes, repeated m
+    times (one per row). Rows: the ranks' elements in order (rank r's after rank r-1's).
+    free: a local (owned + ghost) dof array, 0 at the clamped dofs, whose entries are then
+    0 (kept in the pattern)."""
+    nc, a = conn.shape
     comm = A.getComm()
     n_local = A.getLocalSize()[1]
     G = PETSc.Mat().create(comm=comm)
-    G.setSizes(((nc, PETSc.DETERMINE), (n_local, PETSc.DETERMINE)))
+    G.setSizes(((m * nc, PETSc.DETERMINE), (n_local, PETSc.DETERMINE)))
     G.setType(PETSc.Mat.Type.AIJ)
     G.setBlockSizes(1, 3)                        # columns: A's (its LGMap's blocks)
-    G.setPreallocationNNZ((24, 24))
-    start = comm.tompi4py().exscan(nc) or 0
-    rmap = PETSc.LGMap().create(np.arange(start, start + nc, dtype=PETSc.IntType), comm=comm)
+    G.setPreallocationNNZ((3 * a, 3 * a))
+    start = comm.tompi4py().exscan(m * nc) or 0
+    rmap = PETSc.LGMap().create(np.arange(start, start + m * nc, dtype=PETSc.IntType),
+                                comm=comm)
     G.setLGMap(rmap, A.getLGMap()[1])
     vol = np.zeros(nc)
     idx_type = PETSc.IntType
-    for s in range(0, nc, CHUNK):
-        c = conn[s:s + CHUNK]
-        g, vol[s:s + CHUNK] = cell_divergence(coords[c])
+    step = chunk(conn)
+    for s in range(0, nc, step):
+        c = conn[s:s + step]
+        dNdx, wdet = _geometry(coords[c])
+        g = projected_divergence(coords[c], dNdx, wdet, m)             # (n, m, a, 3)
+        vol[s:s + step] = wdet.sum(axis=1)
         if frame is not None:
             T = np.where(frame.local_mask[c][:, :, None, None], frame.Q, np.eye(3))
-            g = np.einsum("maij,maj->mai", T, g)
-        cols = (3 * c[:, :, None] + np.arange(3)).reshape(c.shape[0], 24).astype(idx_type)
+            g = np.einsum("naij,nmaj->nmai", T, g)
+        cols = (3 * c[:, :, None] + np.arange(3)).reshape(c.shape[0], 3 * a).astype(idx_type)
+        g = g.reshape(c.shape[0], m, 3 * a)
         if free is not None:
-            g = g * free[cols].reshape(g.shape)
-        rows = (s + np.arange(c.shape[0])).astype(idx_type).reshape(-1, 1)
-        G.setValuesLocalRCV(rows, cols, g.reshape(c.shape[0], 1, 24),
-                            addv=PETSc.InsertMode.INSERT_VALUES)
+            g = g * free[cols][:, None, :]
+        rows = (m * s + np.arange(m * c.shape[0])).astype(idx_type).reshape(-1, m)
+        G.setValuesLocalRCV(rows, cols, g, addv=PETSc.InsertMode.INSERT_VALUES)
     G.assemble()
     rmap.destroy()
-    return G, vol
+    return G, np.repeat(vol, m)
 
 
 def local_to_global(dm, local_array, gvec=None):

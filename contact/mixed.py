@@ -1,15 +1,16 @@
-"""A nearly incompressible B-bar body's linear solves: its volumetric stiffness split off
-into a cell pressure, so that multigrid sees compressible elasticity.
+"""A nearly incompressible body's linear solves (bbar, q2p1: an element with a condensed
+pressure, fem.PRESSURES): its volumetric stiffness split off into the element pressure,
+so that multigrid sees compressible elasticity.
 
-B-bar's stiffness (fem.py) is K = A_g + kappa G^T diag(1 / |e|) G, where A_g is the B-bar
-stiffness of the same body with lambda_g = LAMBDA_SPLIT mu, kappa = lambda - lambda_g, and
-G holds the cells' divergence integrals (fem.assemble_divergence: (G u)_e = int_e div u).
-With the cell unknown q_e = kappa |e|^(-1/2) (G u)_e (the cell pressure times |e|^(1/2)),
-K u = f is the mixed system
+The stiffness (fem.py) is K = A_g + kappa D^T M^-1 D, where A_g is the stiffness of the
+same body with lambda_g = LAMBDA_SPLIT mu, kappa = lambda - lambda_g, D holds the elements'
+divergence moments against their pressure functions and M their mass matrices (bbar: one
+function, 1, D_e = int_e div u, M_e = |e|; q2p1: four, P1). With Gq = M^-1/2 D
+(fem.assemble_divergence) and the unknown q = kappa Gq u (the pressure's coefficients,
+scaled by M^1/2), K u = f is the mixed system
 
     [ A_g      Gq^T ] [u]   [f]
-    [ R Gq     -Cq  ] [q] = [0],    Gq = diag(|e|^(-1/2)) G,  R = kappa Cq,
-                                    Cq = diag(|e|^(1/6)),
+    [ R Gq     -Cq  ] [q] = [0],    R = kappa Cq,  Cq = diag(|e|^(1/6)),
 
 whose u-block is compressible elasticity (multigrid works on it as at nu = 0.4) and whose
 near-incompressibility is only in the pressure rows. Those rows are scaled (R, Cq) so that
@@ -25,12 +26,12 @@ S_p = -Cq (1 + kappa / (lambda_g + 2 mu)) in place of S = -Cq - R Gq A_g^-1 Gq^T
 pressure mass matrix, as for Stokes). Options under -newton_ (-newton_pc_fieldsplit_*,
 -newton_fieldsplit_u_*, -newton_fieldsplit_p_*); -newton_pressure_split off keeps GMRES on
 K. It converges where GMRES + GAMG on K does not (nu >= 0.499), with the Newton steps of
-nu = 0.3, but its iterations still grow with lambda / mu (Hertz, nd = 5: 541, 917, 1466 in
-all at nu = 0.49, 0.499, 0.4999; q1 at 0.3: 192; runs/results/element.md). B-bar is the
-Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at nd = 3 without contact,
-the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to 1.6 (89 of 2744
-below 0.1), which the diagonal S_p cannot see; a pressure space stable with Q1 (a
-macro-element pressure, or a quadratic element) would be needed for bounded iterations.
+nu = 0.3, but with bbar its iterations still grow with lambda / mu (Hertz, nd = 5: 541,
+917, 1466 in all at nu = 0.49, 0.499, 0.4999; q1 at 0.3: 192; runs/results/element.md).
+B-bar is the Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at nd = 3
+without contact, the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to
+1.6 (89 of 2744 below 0.1), which the diagonal S_p cannot see. q2p1 is the Q2-P1disc
+pair, inf-sup stable: there S_p is spectrally equivalent to S, uniformly in kappa.
 
 LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto starts B-bar) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
@@ -87,8 +88,8 @@ class Split:
         mat = disc.scene["material"]
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
-        Ag = fem.assemble_stiffness(disc.dm, disc.conn, disc.coords, mat["young"],
-                                    mat["poisson"], frame=disc.frame, element="bbar",
+        Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
+                                    mat["poisson"], frame=disc.frame, element=disc.element,
                                     lam=lam_g)
         b = Ag.createVecLeft()
         b.set(0.0)
@@ -104,11 +105,11 @@ class Split:
         free.assemble()
         lfree = disc.dm.getLocalVec()
         disc.dm.globalToLocal(free, lfree)
-        G, vol = fem.assemble_divergence(Ag, disc.conn, disc.coords, disc.frame,
+        G, vol = fem.assemble_divergence(Ag, disc.elements, disc.coords,   # Gq
+                                         fem.PRESSURES[disc.element], disc.frame,
                                          lfree.getArray(readonly=True).copy())
         disc.dm.restoreLocalVec(lfree)
         free.destroy()
-        _scale_rows(G, vol ** -0.5)                # Gq
         Gt = G.transpose(PETSc.Mat())              # (no argument: in place)
         cq = vol ** (1.0 / 6.0)
         _scale_rows(G, self.kappa * cq)            # R Gq
@@ -171,13 +172,14 @@ class Split:
 
 def split_for(disc, mode="auto", pc_given=False):
     """The Split of a discretisation, or None. mode (-newton_pressure_split): auto, a Split
-    for bbar with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
+    for bbar or q2p1 with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
     Newton steps' preconditioner (pc_given: -newton_pc_type, e.g. lu, is one for K: a
     nest cannot be factored); off: None."""
     if mode not in ("auto", "off"):
         raise ValueError(f"-newton_pressure_split must be auto or off, got {mode!r}")
     mat = disc.scene["material"]
     lam, mu = fem.lame(mat["young"], mat["poisson"])
-    if mode == "off" or pc_given or disc.element != "bbar" or lam <= LAMBDA_SPLIT * mu:
+    if mode == "off" or pc_given or disc.element not in fem.PRESSURES or \
+            lam <= LAMBDA_SPLIT * mu:
         return None
     return Split(disc, lam, mu)

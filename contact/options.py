@@ -70,8 +70,9 @@ REGISTRY = [
            "x, y, z, e.g. \"where(x<1.5,0.3,0)\"", "F", ("contact", "friction")),
     Option("element", "auto", str, "hexahedron: q1 (the paper's trilinear), bbar (B-bar: "
            "no volumetric locking as nu -> 0.5), q2 (27-node triquadratic: -nd counts its "
-           "elements, its nodes are the vertices of the mesh refined once), auto (q1 in "
-           "-solver_mode faithful, else bbar where nu >= 0.4, else q1)", "auto|q1|bbar|q2",
+           "elements, its nodes are the vertices of the mesh refined once), q2p1 (q2 with a "
+           "linear pressure per element: no locking), auto (q1 in -solver_mode faithful, "
+           "else bbar where nu >= 0.4, else q1)", "auto|q1|bbar|q2|q2p1",
            ("mesh", "element")),
     Option("young", None, float, "Young's modulus E", "E", ("material", "young")),
     Option("poisson", None, float, "Poisson ratio nu", "NU", ("material", "poisson")),

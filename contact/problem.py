@@ -17,7 +17,7 @@ import time
 
 from petsc4py import PETSc
 
-from . import admissibility, driver, options, transfer
+from . import admissibility, driver, fem, options, transfer
 from .apg import APG
 from .discretisation import Discretisation, element_of
 from .hierarchy import MeshHierarchy
@@ -54,7 +54,7 @@ class ContactProblem:
         try:
             if hierarchy is None:
                 hierarchy = MeshHierarchy(self.scene, self.comm, self._c2f_asked(),
-                                          quadratic=element_of(self.scene) == "q2")
+                                          quadratic=element_of(self.scene) in fem.QUADRATIC)
             self.hierarchy = hierarchy
             self.level = level % len(hierarchy.levels)
             self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level)

@@ -13,7 +13,8 @@ Shape-function gradients are fem.py's (`fem._geometry`); all cells at once (NumP
 chunks of fem.CHUNK cells). q2 (fem.py): the cells are the refined mesh's, each an eighth
 of a 27-node element; a cell's mean is that of the element's quadratic field over the
 eighth (2x2x2 Gauss points of the eighth, in the element's reference coordinates), so a
-linear stress is reproduced exactly in every eighth's mean.
+linear stress is reproduced exactly in every eighth's mean; q2p1's volumetric part is its
+projected divergence's (the element's pressure), averaged over the eighth the same way.
 
 Contact (per owned contact node j, from the reaction R = A u - b of residuals.py; in x, y, z):
   traction         t_j = R_j / w_j, the force per area of the foundation on the body
@@ -58,17 +59,19 @@ def _octant_rules():
     for o in range(8):
         lo = np.array([o // 4, (o // 2) % 2, o % 2], dtype=float)
         _, dn = fem.q2_shape(lo - 0.5 + g)
-        rules.append((dn, np.ascontiguousarray(dn.transpose(0, 2, 1)), np.full(8, 0.125)))
+        rules.append(((dn, np.ascontiguousarray(dn.transpose(0, 2, 1)), np.full(8, 0.125)),
+                      lo - 0.5 + g))
     return rules
 
 
 _OCTANTS = _octant_rules()
 
 
-def cell_stress(X, U, lam, mu, rule=None):
+def cell_stress(X, U, lam, mu, rule=None, theta=None):
     """Cell-mean Cauchy stress (c, 6) and volumes (c,) of cells X (c, a, 3) with nodal
     displacements U (c, a, 3): the Gauss values (the element's rule, or `rule`: see
-    fem._geometry) averaged with weights |J| w."""
+    fem._geometry) averaged with weights |J| w. theta (c,): the cells' mean volumetric
+    strain where an element projects it (q2p1), in place of the mean of tr eps."""
     dNdx, wdet = fem._geometry(X, rule)
     vol = wdet.sum(axis=1)
     a = X.shape[1]
@@ -77,8 +80,22 @@ def cell_stress(X, U, lam, mu, rule=None):
     # einsum is ~10x slower)
     eps = 0.5 * (H + H.transpose(0, 2, 1))
     sig = 2.0 * mu * eps
-    sig[:, [0, 1, 2], [0, 1, 2]] += lam * np.trace(eps, axis1=1, axis2=2)[:, None]
+    tr = np.trace(eps, axis1=1, axis2=2)
+    vol_part = lam * tr if theta is None else (lam + 2.0 * mu / 3.0) * theta - 2.0 * mu / 3.0 * tr
+    sig[:, [0, 1, 2], [0, 1, 2]] += vol_part[:, None]
     return sig[:, _I, _J], vol
+
+
+def _projected_theta(X, U, rule, points, m):
+    """The mean over an eighth (rule, its Gauss points `points` in the element's reference
+    coordinates) of the elements' projected divergence (fem.projected_divergence), for
+    elements X (c, 27, 3) with displacements U."""
+    dNdx, wdet = fem._geometry(X)
+    Dq, Mh = fem.projected_divergence(X, dNdx, wdet, m, with_mass=True)
+    coef = np.einsum("cmn,cnak,cak->cm", Mh, Dq, U)          # theta = q . coef
+    _, w8 = fem._geometry(X, rule)
+    q8 = fem.pressure_basis(X, wdet, m, points=points)
+    return np.einsum("cgm,cm,cg->c", q8, coef, w8) / w8.sum(axis=1)
 
 
 def local_values(dm, owned):
@@ -123,12 +140,14 @@ def body_stress(problem, u=None):
             c = conn[a:a + fem.CHUNK]
             s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
     else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
-        for o, rule in enumerate(_OCTANTS):
+        m = fem.PRESSURES.get(problem.element)
+        for o, (rule, points) in enumerate(_OCTANTS):
             cells = np.flatnonzero(q.octant == o)
             for a in range(0, cells.size, fem.CHUNK // 8):
                 f = cells[a:a + fem.CHUNK // 8]
-                e = q.conn[f // 8]
-                s[f], vol[f] = cell_stress(coords[e], ul[e], lam, mu, rule)
+                X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
+                theta = _projected_theta(X, U, rule, points, m) if m else None
+                s[f], vol[f] = cell_stress(X, U, lam, mu, rule, theta)
     vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes
     acc = np.column_stack([np.bincount(conn.ravel(), weights=np.repeat(vals[:, k], 8),
                                        minlength=coords.shape[0]) for k in range(7)])

@@ -183,5 +183,5 @@ def test_bad_element_is_refused():
     sc = paper_scene(nd=1)
     sc["mesh"]["element"] = "q3"
     from contact import scene as scenes
-    with pytest.raises(SceneError, match="element must be auto, q1, bbar, q2, got 'q3'"):
+    with pytest.raises(SceneError, match="element must be auto, q1, bbar, q2, q2p1, got 'q3'"):
         scenes.validate(sc)

@@ -12,12 +12,13 @@ mesh's vertices, contact/hierarchy.py QuadraticCells).
 * a pressed block's closed form, the stress of a uniaxial state, ranks.
 """
 import copy
+import os
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from conftest import gather, paper_scene, solve
+from conftest import ROOT, gather, paper_scene, solve
 from test_independent_reference import (TOL, _block, _compare, _reference, _rel,
                                         check_pressed_block, pressed_block)
 
@@ -336,3 +337,83 @@ def test_gmsh_physical_groups_are_the_planes():
     (xa, ua), (xb, ub) = gather(a)[:2], gather(b)[:2]
     assert np.array_equal(xa, xb) and _rel(ua, ub) < 1e-10
     assert abs(a.normal_force() - b.normal_force()) < 1e-10 * abs(b.normal_force())
+
+
+# ------------------------------------------------- q2p1: the locking-free quadratic element
+@pytest.mark.parametrize("nu", [0.3, 0.4999])
+def test_q2p1_matrices_match_the_reference(nu):
+    """The package's D^T M^-1 D with its scaled, centred basis against the reference's
+    B-bar with the raw basis 1, x, y, z (the projection does not depend on the basis)."""
+    xyz, cells, pk, _, _ = _distorted_q2()
+    Ke = fem.element_stiffness(xyz[pk], *fem.lame(2.0e3, nu), "q2p1")
+    dofs = (3 * pk[:, :, None] + np.arange(3)).reshape(pk.shape[0], 81)
+    n = 3 * xyz.shape[0]
+    ours = sp.csr_matrix((Ke.ravel(), (np.repeat(dofs, 81, axis=1).ravel(),
+                                       np.tile(dofs, (1, 81)).ravel())), shape=(n, n))
+    ref = ind.stiffness(xyz, cells, 2.0e3, nu, "q2p1")
+    assert _rel(ours.toarray(), ref.toarray()) < 1e-10
+
+
+def test_q2p1_has_four_constraints_per_element():
+    """As lambda -> infinity, q2p1's element matrix has 4 stiff modes (the linear
+    pressure), q2's 26 or 27 (a curved element: 27): q2 locks, q2p1 does not."""
+    xyz, _, pk, _, _ = _distorted_q2()
+    stiff = {el: np.count_nonzero(np.linalg.eigvalsh(
+        fem.element_stiffness(xyz[pk[:1]], 1e8, 1.0, el)[0]) > 1e4) for el in ("q2p1", "q2")}
+    assert stiff["q2p1"] == 4 and stiff["q2"] >= 26, stiff
+
+
+@pytest.mark.parametrize("nu", [0.3, 0.4999])
+def test_paper_beam_q2p1_against_reference(nu):
+    """q2p1 with the default solves (nu = 0.4999: the mixed u-p split of contact/mixed.py,
+    four pressure rows per element) against the reference's own B-bar-P1 assembly."""
+    sc = paper_scene(nd=1, mode="newton")
+    sc["mesh"]["element"] = "q2p1"
+    sc["material"]["poisson"] = nu
+    du, dp, dJ = _compare(sc, _reference(sc))
+    assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
+
+
+@pytest.mark.parametrize("friction,nu", [(0.3, 0.4999), ("0.1 + 0.5 * x * (1 - 0.5 * y)",
+                                                      0.45)])
+def test_block_q2p1_against_reference(friction, nu):
+    """The block with body force (nu = 0.4999: the split's solves; the varying friction at
+    nu = 0.45: at 0.4999 the two codes' solutions differ by 8e-5 in u, with the package's
+    Newton iteration on exact (LU) solves too: not resolved, see the closing note of
+    issue 25)."""
+    sc = _block(friction, mode="newton")
+    sc["mesh"]["nd"] = 2
+    sc["mesh"]["element"] = "q2p1"
+    sc["material"]["poisson"] = nu
+    du, dp, dJ = _compare(sc, _reference(sc))
+    assert du < TOL and dp < TOL and dJ < TOL, (du, dp, dJ)
+
+
+def test_pressed_block_q2p1_nearly_incompressible():
+    """nu = 0.4999: the uniaxial closed form (u, the pressure p at every contact node) and
+    the stress (its volumetric part the projected divergence's): sigma_zz = -p, the rest
+    0, to round-off; the split's mixed solves did it."""
+    E, nu, p = 1.0e3, 0.4999, 2.0
+    sc = pressed_block(nu, 2, E, p, mode="newton")
+    sc["mesh"]["element"] = "q2p1"
+    pr = solve(sc)
+    assert pr.disc.pressure_split() is not None
+    check_pressed_block(pr, nu, E, p, 1e-8)
+    body = stress.body_stress(pr)
+    want = np.array([0, 0, -p, 0, 0, 0], float)
+    assert np.abs(body["cell"] - want).max() < 1e-6 * p
+
+
+def test_q2p1_does_not_lock_the_beam():
+    """The paper's beam without contact at nu = 0.4999, N = 2: q2p1's max |u| is within 3 %
+    of its value at N = 4 (converged), q2's (locked) far below it."""
+    from contact import scene as scenes
+    out = {}
+    for el, n in (("q2p1", 2), ("q2p1", 4), ("q2", 2)):
+        sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml"))
+        sc["mesh"]["nd"], sc["mesh"]["element"] = n, el
+        sc["material"]["poisson"] = 0.4999
+        pr = solve(scenes.validate(sc))
+        out[el, n] = np.abs(gather(pr)[1]).max()
+    assert abs(out["q2p1", 2] / out["q2p1", 4] - 1) < 0.03, out
+    assert out["q2", 2] < 0.95 * out["q2p1", 4], out

@@ -23,6 +23,9 @@ solver next to it):
   other nodes), 3x3x3 Gauss-Legendre (numpy.polynomial.legendre.leggauss); faces of 9
   nodes, biquadratic, 3x3 Gauss: the consistent int N_j ds (the package lumps by
   Gauss-Lobatto: the same numbers on a flat face, another formula).
+  ``mesh.element: q2p1``: the same cells with B-bar's form where the volumetric rows'
+  gradients are their L2 projection on the linear functions of the cell (the basis 1,
+  x, y, z in the mesh's coordinates, solved with numpy.linalg.solve).
 * Face integrals (consistent tractions, contact weights): bilinear faces, 2x2 Gauss,
   surface element |dx/ds x dx/dt|. Contact weight w_j = int N_j ds over the contact
   face (the trapezoidal rule on a uniform grid).
@@ -220,15 +223,32 @@ def bbar_strain_matrix(dNdx, dv):
     return B
 
 
+def p1_bbar_strain_matrix(dNdx, dv, xg):
+    """B-bar (..., 6, 3k) with the divergence rows b projected on P1 per cell: bbar(x) =
+    p(x)^T M^-1 int p b^T dx, p = (1, x, y, z) at the Gauss points xg (nc, g, 3)."""
+    nc, g = dv.shape
+    b = dNdx.reshape(nc, g, -1)                                # (nc, g, 3k): dN_a/dx_i
+    p = np.concatenate([np.ones((nc, g, 1)), xg], axis=2)      # (nc, g, 4)
+    M = np.einsum("cgi,cgj,cg->cij", p, p, dv)
+    rhs = np.einsum("cgi,cgq,cg->ciq", p, b, dv)
+    bbar = np.einsum("cgi,ciq->cgq", p, np.linalg.solve(M, rhs))
+    B = strain_matrix(dNdx)
+    B[..., :3, :] += (bbar - b)[:, :, None, :] / 3.0
+    return B
+
+
 def stiffness(xyz, cells, young, poisson, element="q1"):
     """Global stiffness K (3n, 3n) CSR, no boundary conditions; element q1 (B at the
     Gauss points) or bbar (bbar_strain_matrix); q2 for cells of 27 nodes (B at the
-    Gauss points)."""
+    Gauss points) or q2p1 (p1_bbar_strain_matrix)."""
     dNdx, dv, _ = _geometry(xyz, cells)
     if element in ("q1", "q2"):
         B = strain_matrix(dNdx)                                 # (nc, g, 6, 24)
     elif element == "bbar":
         B = bbar_strain_matrix(dNdx, dv)
+    elif element == "q2p1":
+        N = _shape(_gauss(3, 3)[0], 27)[0]
+        B = p1_bbar_strain_matrix(dNdx, dv, np.einsum("gq,cqi->cgi", N, xyz[cells]))
     else:
         raise NotImplementedError(f"independent reference: element {element!r}")
     D = hooke(young, poisson)
@@ -331,8 +351,8 @@ def discretise(scene):
     element = scene["mesh"].get("element", "q1")
     if element == "auto":
         raise NotImplementedError("independent reference: name the element (mesh.element "
-                                  "q1, bbar or q2), not auto")
-    xyz, cells = (grid_q2 if element == "q2" else grid)(lower, upper, ncell)
+                                  "q1, bbar, q2 or q2p1), not auto")
+    xyz, cells = (grid_q2 if element in ("q2", "q2p1") else grid)(lower, upper, ncell)
     n = xyz.shape[0]
     tol = 1e-10 * float(np.max(upper - lower))
     K = stiffness(xyz, cells, float(mat["young"]), float(mat["poisson"]), element)
