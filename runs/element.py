@@ -15,6 +15,10 @@
    on the mixed u-p system with a Schur fieldsplit, contact/mixed.py) against GMRES +
    GAMG on the condensed stiffness (-newton_pressure_split off), Newton steps, Krylov
    iterations and time, with q1 at nu = 0.3 (the default there) as the reference.
+5. The quadratic elements on Hertz over nu (nd = 2, --hertz-q2-nd): q2 at nu = 0.3, and
+   q2p1 (q2 with a linear pressure per element, Q2-P1disc, an inf-sup stable pair) at
+   nu = 0.3, 0.49, 0.4999 with its default solves (above 0.4: the same mixed split, four
+   pressure rows per element): accuracy, Newton steps, Krylov iterations against nu.
 q1 at nu = 0.4999 runs with exact linear solves (-newton_ksp_type preonly -newton_pc_type
 lu, MUMPS): GMRES + GAMG do not converge on its locked stiffness. At nu = 0.4999 every run
 has -newton_rtol 1e-9 (round-off: the beam at Nd = 16 stagnates at ~2e-11, above the
@@ -161,6 +165,30 @@ def paper(nds, out_dir, log=PETSc.Sys.Print):
     return rows, q
 
 
+QUADRATIC_CASES = (("q2", 0.3), ("q2p1", 0.3), ("q2p1", 0.49), ("q2p1", 0.4999))
+
+
+def quadratic(nd, d=0.04):
+    """Part 5: Hertz with q2 and q2p1 (module docstring)."""
+    rows = []
+    for el, nu in QUADRATIC_CASES:
+        sc = hertz_scene(nd, nu=nu, d=d)
+        sc["mesh"]["element"] = el
+        opts = {"newton_rtol": "1e-9"} if nu > 0.49 else {}
+        pr, err, t = run(sc, opts)
+        row = dict(nu=nu, element=el, time=t, error=err, rtol=opts.get("newton_rtol", "1e-11"))
+        if pr is not None:
+            a = analyse(pr, nu)
+            delta = d + approach_correction(a["P"], nu)
+            row.update(force=a["P"] / th.hertz_force(delta, R_SPHERE, 1.0, nu),
+                       radius=a["a_area"] / a["a_hertz"], peak=a["p_max"] / a["p0_hertz"],
+                       newton=pr.inner.iterations, ksp=pr.inner.ksp_iterations,
+                       dofs=pr.n_dofs, split=pr.disc.pressure_split() is not None)
+        rows.append(row)
+        PETSc.Sys.Print(f"quadratic hertz nd {nd}: {row}")
+    return rows
+
+
 def f3(x):
     return "–" if x is None else f"{x:.3f}"
 
@@ -174,8 +202,8 @@ def failed_row(head, r, dashes, tail=()):
     return md_row(*head, f"failed: {r['error']}", *["–"] * dashes, f"{r['time']:.1f}", *tail)
 
 
-def write(path, hz, bm, pb, sv, nd, args, elapsed):
-    L = ["# Elements against volumetric locking (`-element q1 | bbar`)", ""]
+def write(path, hz, bm, pb, sv, nd, args, elapsed, qd=(), qnd=None):
+    L = ["# Elements against volumetric locking (`-element q1 | bbar | q2 | q2p1`)", ""]
     L += harness.provenance_lines(1, argv=args)
     L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min.", "",
           f"## Hertz, nd = {nd}", "",
@@ -228,6 +256,23 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed):
                      md_row(*head, r["newton"], r["ksp"], f"{r['ksp'] / base['ksp']:.1f}",
                             f"{r['time']:.1f}", f"{r['time'] / base['time']:.1f}",
                             r["rtol"]))
+    if qd:
+        base = qd[0]
+        L += ["", f"## The quadratic elements over nu (Hertz, nd = {qnd})", "",
+              "q2 (27 nodes, full integration) and q2p1 (its volumetric strain projected on a "
+              "linear pressure per element: Q2-P1disc, inf-sup stable), each with its default "
+              "solves (q2p1 above nu = 0.4: the mixed split of contact/mixed.py, four pressure "
+              "rows per element). Ratio: Krylov iterations to q2's at nu = 0.3.", "",
+              "| nu | element | dofs | split | force / Hertz | radius / Hertz | peak / Hertz | "
+              "Newton steps | Krylov its | its / q2's at 0.3 | time, s | -newton_rtol |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in qd:
+            head = (r["nu"], r["element"])
+            L.append(failed_row(head, r, 8, (r["rtol"],)) if r["error"] else
+                     md_row(*head, r["dofs"], "yes" if r["split"] else "no", f3(r["force"]),
+                            f3(r["radius"]), f3(r["peak"]), r["newton"], r["ksp"],
+                            f"{r['ksp'] / base['ksp']:.1f}" if base.get("ksp") else "–",
+                            f"{r['time']:.1f}", r["rtol"]))
     rows, q = pb
     if rows:
         L += ["", "## The paper's beam as it is (nu = 0.277): error against time", "",
@@ -249,6 +294,8 @@ def main():
                     "(tests; needs --out)")
     ap.add_argument("--out", default=None, help="markdown (default runs/results/element.md)")
     ap.add_argument("--hertz-nd", type=int, default=5)
+    ap.add_argument("--hertz-q2-nd", type=int, default=2,
+                    help="nd of the quadratic elements' Hertz part (smoke: 1)")
     ap.add_argument("--beam-nd", type=int, nargs="+", default=[4, 8, 16],
                     help="beam sizes (nu = 0.4999 with MUMPS LU: Nd = 32 took 512 s for bbar)")
     args = ap.parse_args()
@@ -261,11 +308,13 @@ def main():
     hz = hertz(nd)
     bm = beam(nds)
     sv = solves(nd)
+    qnd = 1 if args.smoke else args.hertz_q2_nd
+    qd = quadratic(qnd)
     pb = paper([2, 3] if args.smoke else [4, 8, 16, 24, 32, 40],
                os.path.join(os.path.dirname(out) if args.smoke else
                             os.path.join(HERE, "out", "element")))
     if PETSc.COMM_WORLD.getRank() == 0:
-        write(out, hz, bm, pb, sv, nd, sys.argv[1:], time.perf_counter() - t0)
+        write(out, hz, bm, pb, sv, nd, sys.argv[1:], time.perf_counter() - t0, qd, qnd)
     PETSc.Sys.Print(f"wrote {out}")
     return 0
 

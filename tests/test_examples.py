@@ -308,3 +308,10 @@ def test_element(tmp_path):
     for nd in (2, 3, 4):
         assert beam[("bbar", nd)] > 1.5 * beam[("q1", nd)]          # Q1 locks
     assert beam[("bbar", 2)] < beam[("bbar", 3)] < beam[("bbar", 4)]
+    # part 5: q2 at 0.3, q2p1 at 0.3 (no split), 0.49 and 0.4999 (the split), all solved
+    quad = {(r[0], r[1]): r for nu in ("0.3", "0.49", "0.4999") for r in table_rows(md, nu)
+            if len(r) == 12}
+    assert set(quad) == {("0.3", "q2"), ("0.3", "q2p1"), ("0.49", "q2p1"),
+                         ("0.4999", "q2p1")}, quad
+    assert not any("failed" in c for r in quad.values() for c in r)
+    assert [quad[k][3] for k in sorted(quad)] == ["no", "no", "yes", "yes"]
