@@ -21,7 +21,9 @@ one; without the scaling GMRES stops with the constraint far off).
 
 The Newton iteration (coulomb.py) changes the contact rows of [A_g Gq^T] as it changes K's
 and solves the mixed system by GMRES with a Schur-complement fieldsplit (upper
-factorisation): one GAMG cycle on A_g, and on the pressure the diagonal
+factorisation): on A_g one cycle of the geometric multigrid on the mesh hierarchy where
+there is one (multigrid.py, as for A; q2p1 always has one: its element mesh), else of
+GAMG; on the pressure the diagonal
 S_p = -Cq (1 + kappa / (lambda_g + 2 mu)) in place of S = -Cq - R Gq A_g^-1 Gq^T (a
 pressure mass matrix, as for Stokes). Options under -newton_ (-newton_pc_fieldsplit_*,
 -newton_fieldsplit_u_*, -newton_fieldsplit_p_*); -newton_pressure_split off keeps GMRES on
@@ -32,6 +34,10 @@ B-bar is the Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at n
 without contact, the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to
 1.6 (89 of 2744 below 0.1), which the diagonal S_p cannot see. q2p1 is the Q2-P1disc
 pair, inf-sup stable: there S_p is spectrally equivalent to S, uniformly in kappa.
+Measured with q2p1 (runs/results/element.md part 5, Hertz nd = 2): 96 + ... Krylov
+iterations; without contact (the beam, N = 4, rtol 1e-10) 21, 26, 32, 40 at nu = 0.45,
+0.49, 0.4999, 0.499999 (CG + multigrid at nu = 0.3: 10); with GAMG on A_g instead of the
+multigrid 68, 78, 111, 125.
 
 LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto starts B-bar) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
@@ -85,6 +91,9 @@ class Split:
 
     def __init__(self, disc, lam, mu):
         comm = disc.A.getComm()
+        #: the u-block's preconditioner: geometric multigrid on the mesh hierarchy (the
+        #: discretisation's, as for A), or GAMG on a mesh of one level
+        self.mg = disc.multigrid
         mat = disc.scene["material"]
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
@@ -141,11 +150,20 @@ class Split:
         isu, isp = self.M.getNestISs()[0]
         pc.setFieldSplitIS(("u", isu), ("p", isp))
         prefix = ksp.getOptionsPrefix() or ""
-        with options.inserted({prefix + k: v for k, v in {**DEFAULTS, **kw}.items()}):
+        opts = PETSc.Options()
+        mg = self.mg if not opts.hasName(prefix + "fieldsplit_u_pc_type") else None
+        # with a hierarchy the u-block becomes PCMG after the split's set-up (which
+        # creates its KSP): until then a PC that costs nothing to set up
+        defaults = dict(DEFAULTS, **({"fieldsplit_u_pc_type": "none"} if mg else {}))
+        with options.inserted({prefix + k: v for k, v in {**defaults, **kw}.items()}):
             ksp.setFromOptions()
-            if not PETSc.Options().hasName(prefix + "pc_fieldsplit_schur_precondition"):
+            if not opts.hasName(prefix + "pc_fieldsplit_schur_precondition"):
                 pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
             pc.setUp()
+        if mg is not None:
+            ku = pc.getFieldSplitSubKSP()[0]
+            with options.inserted(mg.setup(ku)):
+                ku.setFromOptions()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):
         """A KSP for K u = b through M (a scene without contact: fem.elasticity_ksp's
