@@ -49,7 +49,10 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
         Field("cell_stress", "cells/stress", 6, "Cell", help="Cauchy stress, cell mean of "
               "the 2x2x2 Gauss values; xx, yy, zz, xy, yz, xz"),
         Field("cell_von_mises", "cells/von_mises", 1, "Cell",
-              help="von Mises of `cell_stress`"))
+              help="von Mises of `cell_stress`"),
+        Field("cell_pressure", "cells/pressure", 1, "Cell",
+              help="p = -tr(`cell_stress`) / 3: bbar's cell pressure -kappa div_e u, q2p1's "
+                   "projected pressure's mean over the cell"))
 #: the contact nodes' fields (stress.contact_state)
 CONTACT = (Field("pressure", "contact/pressure", 1, "Node",
                  help="g = -sigma_nu >= 0, the loops' multiplier l"),
@@ -224,7 +227,8 @@ def _body_values(body, u):
     un = u.getArray(readonly=True).reshape(-1, 3)
     return {"displacement": un, "displacement_magnitude": np.linalg.norm(un, axis=1),
             "stress": body["nodal"], "von_mises": body["nodal_von_mises"],
-            "cell_stress": body["cell"], "cell_von_mises": body["cell_von_mises"]}
+            "cell_stress": body["cell"], "cell_von_mises": body["cell_von_mises"],
+            "cell_pressure": -body["cell"][:, :3].sum(axis=1) / 3.0}
 
 
 def write_hdf5(path, problem, layout, written):

@@ -402,6 +402,11 @@ def test_pressed_block_q2p1_nearly_incompressible():
     body = stress.body_stress(pr)
     want = np.array([0, 0, -p, 0, 0, 0], float)
     assert np.abs(body["cell"] - want).max() < 1e-6 * p
+    # the pressure field of the outputs (cells/pressure): -tr(sigma) / 3 = p / 3
+    from contact import output
+    cell_p = output._body_values(body, pr.displacement())["cell_pressure"]
+    assert pr.comm.tompi4py().allreduce(cell_p.size) > 0
+    assert np.all(np.abs(cell_p - p / 3.0) < 1e-6 * p)
 
 
 def test_q2p1_does_not_lock_the_beam():
