@@ -51,9 +51,9 @@ import scipy.sparse as sp
 
 from .socp import solve_coulomb, solve_tresca
 
-__all__ = ["grid", "grid_q2", "shape_q1", "shape_lagrange", "strain_matrix", "stiffness", "hooke", "face_integral",
-           "volume_integral", "plane_faces", "discretise", "solve", "energy", "rigid_modes",
-           "friction_at"]
+__all__ = ["grid", "grid_q2", "shape_q1", "shape_lagrange", "strain_matrix",
+           "p1_bbar_strain_matrix", "stiffness", "hooke", "face_integral", "volume_integral",
+           "plane_faces", "discretise", "solve", "energy", "rigid_modes", "friction_at"]
 
 AXES = {"x": 0, "y": 1, "z": 2}
 GAUSS = np.array([-1.0, 1.0]) / math.sqrt(3.0)      # 2-point Gauss rule, weights 1
