@@ -15,7 +15,7 @@
    on the mixed u-p system with a Schur fieldsplit, contact/mixed.py) against GMRES +
    GAMG on the condensed stiffness (-newton_pressure_split off), Newton steps, Krylov
    iterations and time, with q1 at nu = 0.3 (the default there) as the reference.
-5. The quadratic elements on Hertz over nu (nd = 2, --hertz-q2-nd): q2 at nu = 0.3, and
+5. The quadratic elements on Hertz over nu (nd = 5, --hertz-q2-nd): q2 at nu = 0.3, and
    q2p1 (q2 with a linear pressure per element, Q2-P1disc, an inf-sup stable pair) at
    nu = 0.3, 0.49, 0.4999 with its default solves (above 0.4: the same mixed split, four
    pressure rows per element): accuracy, Newton steps, Krylov iterations against nu.
@@ -294,7 +294,7 @@ def main():
                     "(tests; needs --out)")
     ap.add_argument("--out", default=None, help="markdown (default runs/results/element.md)")
     ap.add_argument("--hertz-nd", type=int, default=5)
-    ap.add_argument("--hertz-q2-nd", type=int, default=2,
+    ap.add_argument("--hertz-q2-nd", type=int, default=5,
                     help="nd of the quadratic elements' Hertz part (smoke: 1)")
     ap.add_argument("--beam-nd", type=int, nargs="+", default=[4, 8, 16],
                     help="beam sizes (nu = 0.4999 with MUMPS LU: Nd = 32 took 512 s for bbar)")
