@@ -86,16 +86,21 @@ def cell_stress(X, U, lam, mu, rule=None, theta=None):
     return sig[:, _I, _J], vol
 
 
-def _projected_theta(X, U, rule, points, m):
-    """The mean over an eighth (rule, its Gauss points `points` in the element's reference
-    coordinates) of the elements' projected divergence (fem.projected_divergence), for
-    elements X (c, 27, 3) with displacements U."""
-    dNdx, wdet = fem._geometry(X)
-    Dq, Mh = fem.projected_divergence(X, dNdx, wdet, m, with_mass=True)
-    coef = np.einsum("cmn,cnak,cak->cm", Mh, Dq, U)          # theta = q . coef
-    _, w8 = fem._geometry(X, rule)
-    q8 = fem.pressure_basis(X, wdet, m, points=points)
-    return np.einsum("cgm,cm,cg->c", q8, coef, w8) / w8.sum(axis=1)
+def _projected_theta(coords, ul, conn, m):
+    """(ne, 8): each element's projected divergence (fem.projected_divergence, m pressure
+    functions) averaged over each of its eighths (_OCTANTS), for elements conn (ne, 27)
+    with local displacements ul; the projection once per element."""
+    theta = np.zeros((conn.shape[0], 8))
+    for a in range(0, conn.shape[0], fem.CHUNK // 8):
+        X, U = coords[conn[a:a + fem.CHUNK // 8]], ul[conn[a:a + fem.CHUNK // 8]]
+        dNdx, wdet = fem._geometry(X)
+        Dq, Mh = fem.projected_divergence(X, dNdx, wdet, m, with_mass=True)
+        coef = np.einsum("cmn,cnak,cak->cm", Mh, Dq, U)          # theta = q . coef
+        for o, (rule, points) in enumerate(_OCTANTS):
+            _, w8 = fem._geometry(X, rule)
+            q8 = fem.pressure_basis(X, wdet, m, points=points)
+            theta[a:a + X.shape[0], o] = np.einsum("cgm,cm,cg->c", q8, coef, w8) / w8.sum(axis=1)
+    return theta
 
 
 def local_values(dm, owned):
@@ -141,13 +146,14 @@ def body_stress(problem, u=None):
             s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
     else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
         m = fem.PRESSURES.get(problem.element)
-        for o, (rule, points) in enumerate(_OCTANTS):
+        theta = _projected_theta(coords, ul, q.conn, m) if m else None
+        for o, (rule, _) in enumerate(_OCTANTS):
             cells = np.flatnonzero(q.octant == o)
             for a in range(0, cells.size, fem.CHUNK // 8):
                 f = cells[a:a + fem.CHUNK // 8]
                 X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
-                theta = _projected_theta(X, U, rule, points, m) if m else None
-                s[f], vol[f] = cell_stress(X, U, lam, mu, rule, theta)
+                s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
+                                           None if theta is None else theta[f // 8, o])
     vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes
     acc = np.column_stack([np.bincount(conn.ravel(), weights=np.repeat(vals[:, k], 8),
                                        minlength=coords.shape[0]) for k in range(7)])

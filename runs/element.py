@@ -79,6 +79,16 @@ def run(sc, opts):
     return pr, None, time.perf_counter() - t0
 
 
+def hertz_ratios(pr, nu, d):
+    """A solved Hertz run's force (at the corrected approach), contact radius and peak
+    pressure against Hertz's, its Newton steps, Krylov iterations and dofs."""
+    a = analyse(pr, nu)
+    delta = d + approach_correction(a["P"], nu)
+    return dict(force=a["P"] / th.hertz_force(delta, R_SPHERE, 1.0, nu),
+                radius=a["a_area"] / a["a_hertz"], peak=a["p_max"] / a["p0_hertz"],
+                newton=pr.inner.iterations, ksp=pr.inner.ksp_iterations, dofs=pr.n_dofs)
+
+
 def hertz(nd, d=0.04):
     rows = []
     for nu in NUS:
@@ -88,12 +98,7 @@ def hertz(nd, d=0.04):
             pr, err, t = run(sc, exact(nu, el))
             row = dict(nu=nu, element=el, solver=solver_name(nu, el), time=t, error=err)
             if pr is not None:
-                a = analyse(pr, nu)
-                delta = d + approach_correction(a["P"], nu)
-                row.update(force=a["P"] / th.hertz_force(delta, R_SPHERE, 1.0, nu),
-                           radius=a["a_area"] / a["a_hertz"],
-                           peak=a["p_max"] / a["p0_hertz"], newton=pr.inner.iterations,
-                           ksp=pr.inner.ksp_iterations, dofs=pr.n_dofs)
+                row.update(hertz_ratios(pr, nu, d))
             rows.append(row)
             PETSc.Sys.Print(f"hertz nd {nd} nu {nu} {el}: {row}")
     return rows
@@ -178,12 +183,7 @@ def quadratic(nd, d=0.04):
         pr, err, t = run(sc, opts)
         row = dict(nu=nu, element=el, time=t, error=err, rtol=opts.get("newton_rtol", "1e-11"))
         if pr is not None:
-            a = analyse(pr, nu)
-            delta = d + approach_correction(a["P"], nu)
-            row.update(force=a["P"] / th.hertz_force(delta, R_SPHERE, 1.0, nu),
-                       radius=a["a_area"] / a["a_hertz"], peak=a["p_max"] / a["p0_hertz"],
-                       newton=pr.inner.iterations, ksp=pr.inner.ksp_iterations,
-                       dofs=pr.n_dofs, split=pr.disc.pressure_split() is not None)
+            row.update(hertz_ratios(pr, nu, d), split=pr.disc.pressure_split() is not None)
         rows.append(row)
         PETSc.Sys.Print(f"quadratic hertz nd {nd}: {row}")
     return rows
