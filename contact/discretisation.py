@@ -19,8 +19,11 @@ from .frame import ContactFrame, basis
 from .scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)
-#: -element auto: B-bar from this Poisson ratio on (outside -solver_mode faithful)
-AUTO_BBAR_NU = 0.4
+#: -element auto: q2p1 from this Poisson ratio on (outside -solver_mode faithful). At
+#: nu = 0.4999 (runs/results/element.md) q2p1's Krylov iterations are 2.3x q2's at 0.3 on
+#: Hertz, bbar's 7.6x q1's and growing ~2x per refinement on the beam (Q1-P0 is not
+#: inf-sup stable); on the beam q2p1 reaches bbar's accuracy at a fraction of its time
+AUTO_LOCKFREE_NU = 0.4
 #: the Newton iteration's contact stiffness rho = A_nn / w of a bbar body: A_nn of a
 #: material with lambda at most this times mu (that of nu = 0.3)
 RHO_LAMBDA_CAP = 1.5
@@ -28,12 +31,12 @@ RHO_LAMBDA_CAP = 1.5
 
 def element_of(scene):
     """The element of a run (fem.ELEMENTS): -element (or the scene's mesh.element); auto:
-    q1 in the paper's faithful mode, else bbar where nu >= AUTO_BBAR_NU, else q1. (q2's
+    q1 in the paper's faithful mode, else q2p1 where nu >= AUTO_LOCKFREE_NU, else q1. (q2's
     mesh hierarchy is built for its nodes: problem.py asks here first.)"""
     el = options.get("element", scene)
     if el == "auto":
         faithful = options.get("solver_mode", scene) == "faithful"
-        el = "q1" if faithful or scene["material"]["poisson"] < AUTO_BBAR_NU else "bbar"
+        el = "q1" if faithful or scene["material"]["poisson"] < AUTO_LOCKFREE_NU else "q2p1"
     if el not in fem.ELEMENTS:
         raise SceneError(f"-element must be auto, {', '.join(fem.ELEMENTS)}, got {el!r}")
     return el

@@ -34,14 +34,15 @@ B-bar is the Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at n
 without contact, the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to
 1.6 (89 of 2744 below 0.1), which the diagonal S_p cannot see. q2p1 is the Q2-P1disc
 pair, inf-sup stable: there S_p is spectrally equivalent to S, uniformly in kappa.
-Measured with q2p1 (runs/results/element.md part 5, Hertz nd = 5): 246, 473, 526 Krylov
-iterations in all at nu = 0.3, 0.49, 0.4999 (q2 at 0.3: 233), 7, 6, 6 Newton steps
-(nd = 2: 83, 139, 161; with GAMG on A_g, before: 83, 197, 485);
+Measured with q2p1 (runs/results/element.md part 5, Hertz nd = 5, the multigrid's
+coarsest level, the gmsh mesh, by a GAMG cycle): 287, 697, 582 Krylov iterations in all at
+nu = 0.3, 0.49, 0.4999 (q2 at 0.3: 306), 6, 6, 4 Newton steps (with LU on that level:
+246, 473, 526; nd = 2, with GAMG on A_g before the multigrid: 83, 197, 485);
 without contact (the beam, N = 4, rtol 1e-10) 21, 26, 32, 40 at nu = 0.45,
 0.49, 0.4999, 0.499999 (CG + multigrid at nu = 0.3: 10); with GAMG on A_g instead of the
 multigrid 68, 78, 111, 125.
 
-LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto starts B-bar) was the best of 0 ... 60 on
+LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto leaves q1) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
 iterations at lambda_g / mu = 0, 0.5, 1.5, 4, 10, 25, 60 (GAMG on K alone: no convergence
 in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth of it each.

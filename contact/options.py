@@ -72,7 +72,8 @@ REGISTRY = [
            "no volumetric locking as nu -> 0.5), q2 (27-node triquadratic: -nd counts its "
            "elements, its nodes are the vertices of the mesh refined once), q2p1 (q2 with a "
            "linear pressure per element: no locking), auto (q1 in -solver_mode faithful, "
-           "else bbar where nu >= 0.4, else q1)", "auto|q1|bbar|q2|q2p1",
+           "else q2p1 where nu >= 0.4 (-nd then counts its elements), else q1)",
+           "auto|q1|bbar|q2|q2p1",
            ("mesh", "element")),
     Option("young", None, float, "Young's modulus E", "E", ("material", "young")),
     Option("poisson", None, float, "Poisson ratio nu", "NU", ("material", "poisson")),

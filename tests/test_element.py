@@ -169,7 +169,7 @@ def test_pressed_block_closed_form_nearly_incompressible(element):
 
 
 @pytest.mark.parametrize("mode,nu,given,want", [
-    ("newton", 0.3, None, "q1"), ("newton", 0.4999, None, "bbar"),
+    ("newton", 0.3, None, "q1"), ("newton", 0.4999, None, "q2p1"),
     ("faithful", 0.4999, None, "q1"), ("newton", 0.3, "bbar", "bbar"),
     ("faithful", 0.4999, "bbar", "bbar"), ("newton", 0.4999, "q1", "q1")])
 def test_auto_picks(mode, nu, given, want):

@@ -303,14 +303,20 @@ def test_element(tmp_path):
     solves = [r for r in rows9 if r[2] in ("auto", "off", "–")]      # part 4: 1 + 1 + 4 x 2
     assert len(solves) == 10, solves
     assert not any("failed" in c for r in solves if r[2] != "off" for c in r), solves
-    beam = {(r[1], int(r[3])): float(r[5]) for r in table_rows(md, "0.4999") if len(r) == 10}
-    assert len(beam) == 6, beam
+    # part 2: (element, Nd of the nodes) -> max |u|; q2p1 at N = 1, 2 (the nodes of 2, 4)
+    beam = {(r[1], int(r[4])): float(r[6]) for r in table_rows(md, "0.4999")
+            if len(r) == 12 and not r[2].isdigit()}
+    assert len(beam) == 8, beam
     for nd in (2, 3, 4):
         assert beam[("bbar", nd)] > 1.5 * beam[("q1", nd)]          # Q1 locks
     assert beam[("bbar", 2)] < beam[("bbar", 3)] < beam[("bbar", 4)]
+    for nd in (2, 4):                                               # nor does q2p1
+        assert beam[("q2p1", nd)] > 1.5 * beam[("q1", nd)]
+    beam3 = [r for r in table_rows(md, "0.3") if len(r) == 12 and not r[2].isdigit()]
+    assert sorted({r[1] for r in beam3}) == ["bbar", "q1", "q2", "q2p1"], beam3
     # part 5: q2 at 0.3, q2p1 at 0.3 (no split), 0.49 and 0.4999 (the split), all solved
     quad = {(r[0], r[1]): r for nu in ("0.3", "0.49", "0.4999") for r in table_rows(md, nu)
-            if len(r) == 12}
+            if len(r) == 12 and r[2].isdigit()}
     assert set(quad) == {("0.3", "q2"), ("0.3", "q2p1"), ("0.49", "q2p1"),
                          ("0.4999", "q2p1")}, quad
     assert not any("failed" in c for r in quad.values() for c in r)
