@@ -85,6 +85,7 @@ class MeshHierarchy:
         self.kind = m.get("type", "box")
         self.physical_names = []
         self._prolongations = {}
+        self._taken = set()                     # handed over (take_prolongation)
         self._quadratic = {}
         #: q2: the element mesh is one level below the node mesh (module docstring)
         self.quadratic = quadratic
@@ -156,7 +157,8 @@ class MeshHierarchy:
         """Free the meshes of the levels coarser than j (after the coarse-to-fine start);
         the interpolations up to level j are built first and kept (multigrid.py)."""
         for i in range(1, j + 1):
-            self.prolongation(i)
+            if i not in self._taken:
+                self.prolongation(i)
         for lv in self.levels[:j]:
             if lv.dm is not None:
                 lv.destroy()
@@ -173,8 +175,20 @@ class MeshHierarchy:
         """P (Mat, block size 3): level j - 1 -> level j, Q1 interpolation (built once,
         owned by the hierarchy: do not destroy it)."""
         if j not in self._prolongations:
+            if self.levels[j - 1].dm is None:
+                raise MeshError(f"the interpolation to level {self.levels[j].nd}: its coarse "
+                                f"level was freed (release_below)")
             self._prolongations[j] = prolongation(self.levels[j - 1], self.levels[j])
         return self._prolongations[j]
+
+    def take_prolongation(self, j):
+        """prolongation(j), handed over: the caller owns it (the multigrid's finest
+        interpolation, which changes it in place or makes its own from it), and the
+        hierarchy keeps no copy (release_below does not rebuild it)."""
+        P = self.prolongation(j)
+        del self._prolongations[j]
+        self._taken.add(j)
+        return P
 
 
 def _snap_to_box(level, cells, lower, upper):
