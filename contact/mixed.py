@@ -34,10 +34,12 @@ B-bar is the Q1-P0 pair, whose inf-sup constant is small: measured on Hertz at n
 without contact, the eigenvalues of S_p^-1 S as kappa -> infinity spread from 0.0018 to
 1.6 (89 of 2744 below 0.1), which the diagonal S_p cannot see. q2p1 is the Q2-P1disc
 pair, inf-sup stable: there S_p is spectrally equivalent to S, uniformly in kappa.
-Measured with q2p1 (runs/results/element.md part 5, Hertz nd = 5, the multigrid's
-coarsest level, the gmsh mesh, by a GAMG cycle): 287, 697, 582 Krylov iterations in all at
-nu = 0.3, 0.49, 0.4999 (q2 at 0.3: 306), 6, 6, 4 Newton steps (with LU on that level:
-246, 473, 526; nd = 2, with GAMG on A_g before the multigrid: 83, 197, 485);
+Measured with q2p1 (runs/results/element.md part 5, Hertz nd = 5; the multigrid's
+coarsest level, the gmsh mesh, factored in the u-block, by a GAMG cycle without the
+split): 287, 473, 526 Krylov iterations in all at nu = 0.3, 0.49, 0.4999 (q2 at 0.3:
+306), 6, 6, 6 Newton steps; 2 ranks 291, 475, 525 (element-2ranks.md); with the GAMG
+cycle in the u-block too 287, 697, 582 (2 ranks at 0.4999: 1066); nd = 2, with GAMG on
+A_g before the multigrid: 83, 197, 485;
 without contact (the beam, N = 4, rtol 1e-10) 21, 26, 32, 40 at nu = 0.45,
 0.49, 0.4999, 0.499999 (CG + multigrid at nu = 0.3: 10); with GAMG on A_g instead of the
 multigrid 68, 78, 111, 125.
@@ -50,7 +52,7 @@ in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth o
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, options
+from . import fem, multigrid, options
 
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
 LAMBDA_SPLIT = 4.0
@@ -165,7 +167,7 @@ class Split:
             pc.setUp()
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
-            with options.inserted(mg.setup(ku)):
+            with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT)):
                 ku.setFromOptions()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):

@@ -8,8 +8,8 @@ its contact rows changed (contact/coulomb.py). The finest interpolation is turne
 problem's basis (T^T P with a contact frame, contact/frame.py) and is zero on the clamped
 rows (a coarse correction never moves a clamped dof). Smoothing: Chebyshev with point-block
 Jacobi (the nodes' 3 x 3 blocks; point Jacobi with GPU Vec types: level_pc_type); the
-coarsest level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs, else
-solved by one GAMG cycle.
+coarsest level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
+(COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
 
 Measured (runs/results/scaling.md): at Nd = 40 on 2 ranks a CG solve of the beam without
 contact takes 7 iterations and 6.6 s with it, 17 and 10.2 s with GAMG, and 45% less
@@ -26,6 +26,10 @@ from . import options
 #: Hertz (a gmsh coarse level) with q2, 1 rank: nd = 3 (~10,000 coarse dofs) 25 -> 18 s,
 #: nd = 5 (~20,000) 73 -> 61 s with the GAMG cycle (LU's factorisations 20 s there)
 COARSE_LU_MAX = 5000
+#: the same bound for the u-block of the mixed split (mixed.py), whose Krylov iterations
+#: the inexact coarse solve doubles: Hertz q2p1 nd = 5, nu = 0.4999, 2 ranks, 1066
+#: iterations with the GAMG cycle, 525 with LU, in the same time (132 and 127 s)
+COARSE_LU_MAX_SPLIT = 30000
 
 #: defaults under the KSP's prefix (the command line wins)
 DEFAULTS = {"pc_mg_galerkin": "both"}
@@ -72,10 +76,11 @@ class Multigrid:
             self._finest = Pf
         return self._finest
 
-    def setup(self, ksp):
+    def setup(self, ksp, coarse_lu_max=COARSE_LU_MAX):
         """Make ksp's PC a PCMG on this hierarchy (before ksp.setFromOptions, so that
         -<prefix>pc_type and the levels' options still apply); returns the option
-        defaults to insert around setFromOptions."""
+        defaults to insert around setFromOptions. The coarsest level is factored up to
+        coarse_lu_max dofs, else solved by one GAMG cycle."""
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.MG)
         pc.setMGLevels(self.n_levels)
@@ -85,7 +90,7 @@ class Multigrid:
         smoother = level_pc_type()
         for j in range(1, self.n_levels):
             pc.getMGSmoother(j).getPC().setType(smoother)
-        if self.hierarchy.levels[0].n_dofs > COARSE_LU_MAX:
+        if self.hierarchy.levels[0].n_dofs > coarse_lu_max:
             pc.getMGCoarseSolve().getPC().setType(PETSc.PC.Type.GAMG)
         prefix = ksp.getOptionsPrefix() or ""
         return {prefix + k: v for k, v in DEFAULTS.items()}

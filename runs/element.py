@@ -25,7 +25,8 @@ has -newton_rtol 1e-9 (round-off: the beam at Nd = 16 stagnates at ~2e-11, above
 default 1e-11). Said in the tables.
 
 Usage: python runs/element.py [--smoke --out DIR/element.md] (entry point: initialises
-PETSc; in process, 1 rank).
+PETSc; in process, 1 rank); part 5 alone on 2 ranks: mpirun -n 2 python runs/element.py
+--only-quadratic --out runs/results/element-2ranks.md.
 """
 import argparse
 import os
@@ -212,9 +213,19 @@ def failed_row(head, r, dashes, tail=()):
 
 def write(path, hz, bm, pb, sv, nd, args, elapsed, qd=(), qnd=None):
     L = ["# Elements against volumetric locking (`-element q1 | bbar | q2 | q2p1`)", ""]
-    L += harness.provenance_lines(1, argv=args)
-    L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min.", "",
-          f"## Hertz, nd = {nd}", "",
+    L += harness.provenance_lines(PETSc.COMM_WORLD.getSize(), argv=args)
+    L += [f"- Wall time of this invocation: {elapsed / 60:.1f} min."]
+    if hz:
+        L += write_hertz(hz, nd)
+    if bm:
+        L += write_beam(bm)
+    L += write_rest(sv, nd, qd, qnd, pb)
+    with open(path, "w") as f:
+        f.write("\n".join(L) + "\n")
+
+
+def write_hertz(hz, nd):
+    L = ["", f"## Hertz, nd = {nd}", "",
           "Force against Hertz's at the same approach (corrected for the clamped depth), "
           "contact radius from the contact area against Hertz's, peak pressure against "
           "Hertz's, at the computed force (contact/validation/hertz.py). Targets (issue 23, "
@@ -226,7 +237,11 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed, qd=(), qnd=None):
         L.append(failed_row(head, r, 4) if r["error"] else
                  md_row(*head, f3(r["force"]), f3(r["radius"]), f3(r["peak"]), r["newton"],
                         r["ksp"], f"{r['time']:.1f}"))
-    L += ["", "## The paper's beam at nu = 0.3 and 0.4999: max |u| and its error against "
+    return L
+
+
+def write_beam(bm):
+    L = ["", "## The paper's beam at nu = 0.3 and 0.4999: max |u| and its error against "
           "time", "",
           "Each element over the same nodes: q1 and bbar at Nd, q2 and q2p1 at N = Nd / 2 "
           "elements (the same vertices). Error: |max |u| / limit - 1|, the limit bbar's "
@@ -252,6 +267,11 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed, qd=(), qnd=None):
     for nu, q in lim.items():
         L.append(f"\nnu = {nu}: bbar's max |u| limit {q['value']:.5e} ± {q['error']:.1e} "
                  f"({q['method']}).")
+    return L
+
+
+def write_rest(sv, nd, qd, qnd, pb):
+    L = []
     if sv:
         base = sv[0]
         L += ["", f"## The Newton steps' linear solves over nu (Hertz, nd = {nd})", "",
@@ -298,8 +318,7 @@ def write(path, hz, bm, pb, sv, nd, args, elapsed, qd=(), qnd=None):
                      + ("–" if r["wall"] is None else f"{r['wall']:.2f}") + " | "
                      + ("failed | – |" if r["umax"] is None else
                         f"{r['umax']:.5e} | {100 * r['error']:.2f} % |"))
-    with open(path, "w") as f:
-        f.write("\n".join(L) + "\n")
+    return L
 
 
 def main():
@@ -312,7 +331,20 @@ def main():
                     help="nd of the quadratic elements' Hertz part (smoke: 1)")
     ap.add_argument("--beam-nd", type=int, nargs="+", default=[4, 8, 16],
                     help="beam sizes (nu = 0.4999 with MUMPS LU: Nd = 32 took 512 s for bbar)")
+    ap.add_argument("--only-quadratic", action="store_true",
+                    help="part 5 alone (e.g. under mpirun -n 2; needs --out)")
     args = ap.parse_args()
+    if args.only_quadratic:
+        if args.out is None:
+            ap.error("--only-quadratic needs --out")
+        t0 = time.perf_counter()
+        qnd = 1 if args.smoke else args.hertz_q2_nd
+        qd = quadratic(qnd)
+        if PETSc.COMM_WORLD.getRank() == 0:
+            write(args.out, [], [], ([], None), [], qnd, sys.argv[1:],
+                  time.perf_counter() - t0, qd, qnd)
+        PETSc.Sys.Print(f"wrote {args.out}")
+        return 0
     if args.smoke and args.out is None:
         ap.error("--smoke needs --out (it must not write into runs/results/)")
     out = args.out or os.path.join(HERE, "results", "element.md")

@@ -321,3 +321,22 @@ def test_element(tmp_path):
                          ("0.4999", "q2p1")}, quad
     assert not any("failed" in c for r in quad.values() for c in r)
     assert [quad[k][3] for k in sorted(quad)] == ["no", "no", "yes", "yes"]
+
+def test_element_quadratic_part_on_two_ranks(tmp_path):
+    """runs/element.py --only-quadratic under mpirun -n 2 (how element-2ranks.md is made):
+    the four rows solved, the split above nu = 0.4, and the provenance says 2 ranks."""
+    out = tmp_path / "element-2ranks.md"
+    cmd = ["mpirun", "-n", "2", "--oversubscribe", sys.executable,
+           os.path.join(ROOT, "runs", "element.py"), "--smoke", "--only-quadratic",
+           "--out", str(out)]
+    p = subprocess.run(cmd, cwd=ROOT, env=harness.environment(), capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    md = read(out)
+    assert "2 MPI rank(s)" in md
+    quad = {(r[0], r[1]): r for nu in ("0.3", "0.49", "0.4999") for r in table_rows(md, nu)}
+    assert set(quad) == {("0.3", "q2"), ("0.3", "q2p1"), ("0.49", "q2p1"),
+                         ("0.4999", "q2p1")}, quad
+    assert not any("failed" in c for r in quad.values() for c in r)
+    assert [quad[k][3] for k in sorted(quad)] == ["no", "no", "yes", "yes"]
+
