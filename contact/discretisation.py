@@ -20,9 +20,10 @@ from .scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)
 #: -element auto: q2p1 from this Poisson ratio on (outside -solver_mode faithful). At
-#: nu = 0.4999 (runs/results/element.md) q2p1's Krylov iterations are 2.3x q2's at 0.3 on
-#: Hertz, bbar's 7.6x q1's and growing ~2x per refinement on the beam (Q1-P0 is not
-#: inf-sup stable); on the beam q2p1 reaches bbar's accuracy at a fraction of its time
+#: nu = 0.4999 (runs/results/element.md) q2p1's Krylov iterations on Hertz are 1.8x its
+#: own at 0.3 (1 and 2 ranks), bbar's 7.6x q1's and growing ~2x per refinement on the
+#: beam (Q1-P0 is not inf-sup stable); on the beam q2p1 reaches bbar's accuracy at a
+#: fraction of its time
 AUTO_LOCKFREE_NU = 0.4
 #: the Newton iteration's contact stiffness rho = A_nn / w of a bbar body: A_nn of a
 #: material with lambda at most this times mu (that of nu = 0.3)
