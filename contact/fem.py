@@ -308,10 +308,14 @@ def create_matrix(dm, conn):
     ranks, the same matrix. Each rank lists the distinct (row, column) node pairs of its
     cells, in bounded chunks of rows; the pairs of rows it does not own go to their
     owners, which count a row's distinct columns over its own pairs and those received. A
-    Mat type outside the AIJ family (BAIJ, ...) gets the DM's own matrix."""
+    Mat type outside the AIJ family (BAIJ, SBAIJ, IS, dense) is refused: the solvers need
+    MatPtAP (the multigrid's Galerkin operators, GAMG) and the SPD flag, which PETSc 3.18
+    lacks for (MPI)BAIJ."""
     mat_type = options.requested_type("mat_type")
     if not _aij_family(mat_type):
-        return dm.createMat()
+        raise ValueError(f"-mat_type {mat_type}: the stiffness must be an AIJ type (aij, "
+                         f"aijcusparse, aijkokkos, ...): the multigrid's Galerkin products "
+                         f"(MatPtAP) and the SPD flag need one")
     _EV_PREALLOC.begin()
     try:
         return _preallocated(dm, conn, mat_type)

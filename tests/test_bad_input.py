@@ -127,6 +127,7 @@ CASES = [
     ("r-zero", lambda t: ["-uzawa_r", "0"], "uzawa_r must be"),
     ("r-negative", lambda t: ["-uzawa_r", "-1e8"], "uzawa_r must be"),
     ("nd-zero", lambda t: ["-nd", "0"], "nd must be"),
+    ("mat-type-baij", lambda t: ["-mat_type", "baij"], "must be an AIJ type"),
     ("nan-young", lambda t: ["-young", "nan"], "Young's modulus"),
     ("inf-r", lambda t: ["-uzawa_r", "inf"], "uzawa_r must be"),
     ("nan-traction", lambda t: ["-scene_boundary_top_traction_2", "nan"], "finite numbers"),
@@ -184,7 +185,7 @@ def test_bad_input_one_line(tmp_path, case, args, msg):
 
 TWO_RANKS = ("unknown-option", "young-negative", "friction-expression-inf", "rigid-motion-free",
              "missing-part", "mesh-inverted", "mesh-not-a-mesh", "output-unwritable",
-             "solution-check")
+             "solution-check", "mat-type-baij")
 
 
 @skip_in_parallel
