@@ -1,4 +1,4 @@
-"""The elements against locking (-element q1 | bbar) -> runs/results/element.md.
+"""The elements against locking (-element q1 | bbar | q2 | q2p1) -> runs/results/element.md.
 
 1. Hertz (runs/scenes/hertz.yaml, frictionless, core 2 nd cells across with the scene's
    growth ratio, contact/validation/hertz.py) at nu = 0.3, 0.49, 0.4999 with each element:
