@@ -37,7 +37,7 @@ apt_ensure = missing=""; for p in $(1); do \
 .PHONY: install run run2 test test1 test2 test4 bench report stability validate clean help view
 
 help:
-	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam (default: q2, N = 3)"
+	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam (q2, N = 3)"
 	@echo "make test                       install if needed, run the suite on 1 and 2 ranks, tests/test_ranks.py on 4"
 	@echo "make view  [VIEW_DIR=runs/out/...]  ParaView (installed if needed) renders the last run -> PNGs"
 	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"

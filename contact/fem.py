@@ -446,8 +446,9 @@ def assemble_divergence(A, conn, coords, m, frame=None, free=None):
     step = chunk(conn)
     for s in range(0, nc, step):
         c = conn[s:s + step]
-        dNdx, wdet = _geometry(coords[c])
-        g = projected_divergence(coords[c], dNdx, wdet, m)             # (n, m, a, 3)
+        X = coords[c]
+        dNdx, wdet = _geometry(X)
+        g = projected_divergence(X, dNdx, wdet, m)                     # (n, m, a, 3)
         vol[s:s + step] = wdet.sum(axis=1)
         if frame is not None:
             T = np.where(frame.local_mask[c][:, :, None, None], frame.Q, np.eye(3))
