@@ -30,9 +30,10 @@ node closed in that step (its gaps shut, dx_n = -h).
 The linear solves are inexact (Eisenstat-Walker forcing terms, -newton_ew). The
 preconditioner of the first step is kept while the solves stay short
 (-newton_pc_reuse, -newton_pc_rebuild_its): the Jacobian differs from step to step only in
-the contact rows; a rebuild recomputes the Galerkin coarse operators only (multigrid's
-interpolations are fixed; GAMG's are kept: -newton_pc_gamg_reuse_interpolation, default
-true here).
+the contact rows; a rebuild recomputes the coarse operators only (multigrid's
+interpolations are fixed; its first coarse operator, with a BAIJ A, is A_c + P^T D P with
+D = K - A in the contact rows: multigrid.py; GAMG's interpolations are kept:
+-newton_pc_gamg_reuse_interpolation, default true here).
 Memory: the Jacobian is A itself with its contact rows changed during the solve (one
 matrix, not two; at Nd = 80 A is 4.6 GB), and A gets its rows back at the end, also when
 the iteration fails; the residual reads A's own contact rows from a small copy (S, the
@@ -43,7 +44,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import multigrid, options
+from . import fem, multigrid, options
 from .loop import CONVERGED_RTOL, CONVERGED_ZERO, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
@@ -58,6 +59,53 @@ DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
 #: -newton_rtol request): no friction continuation, a named hint
 ROUNDOFF_FACTOR = 1e3
 INSERT = PETSc.InsertMode.INSERT_VALUES
+
+
+def _rows_of(M, rows):
+    """The owned rows `rows` of M (whole nodes' blocks, in any order) as an AIJ Mat whose
+    rows are in that order, all columns (block index sets: a BAIJ M takes no other)."""
+    comm = M.getComm()
+    nodes = np.unique(rows // 3).astype(PETSc.IntType)
+    c0, c1 = M.getOwnershipRangeColumn()
+    isr = PETSc.IS().createBlock(3, nodes, comm=comm)
+    isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=comm)
+    blocked = M.getType() in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ)
+    if blocked:
+        isc.setBlockSize(3)
+    B = M.createSubMatrix(isr, isc)             # rows node by node
+    isr.destroy()
+    isc.destroy()
+    if blocked:
+        B = B.convert(PETSc.Mat.Type.AIJ)        # in place
+    b0 = B.getOwnershipRange()[0]
+    order = b0 + 3 * np.searchsorted(nodes, rows // 3) + rows % 3
+    isr = PETSc.IS().createGeneral(order.astype(PETSc.IntType), comm=comm)
+    c0, c1 = B.getOwnershipRangeColumn()
+    isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=comm)
+    S = B.createSubMatrix(isr, isc)
+    for obj in (isr, isc, B):
+        obj.destroy()
+    return S
+
+
+def _pattern_matrix(A, rows, cols):
+    """An AIJ Mat shaped as A, holding (zeros at) the padded columns cols (k, W) of the
+    owned rows `rows` (k,), its pattern fixed."""
+    r0, r1 = A.getOwnershipRange()
+    c0, c1 = A.getOwnershipRangeColumn()
+    d, o = np.zeros(r1 - r0, dtype=PETSc.IntType), np.zeros(r1 - r0, dtype=PETSc.IntType)
+    used = cols >= 0
+    d[rows - r0] = np.sum(used & (cols >= c0) & (cols < c1), axis=1)
+    o[rows - r0] = np.sum(used, axis=1) - d[rows - r0]
+    D = PETSc.Mat().create(comm=A.getComm())
+    D.setSizes(A.getSizes(), bsize=3)
+    D.setType(PETSc.Mat.Type.AIJ)
+    D.setPreallocationNNZ((d, o))
+    if rows.size:
+        D.setValuesRCV(rows.reshape(-1, 1), cols, np.zeros(cols.shape)[:, None, :], INSERT)
+    D.assemble()
+    D.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    return D
 
 
 class CoulombNewton(Loop):
@@ -170,27 +218,26 @@ class CoulombNewton(Loop):
         the Jacobian's matrices there (self.mats: A, or A_g and G^T) as padded (3, m, W)
         column and value arrays (padding: column -1, which MatSetValues ignores), with the
         positions of the node's own three dofs in K's. The three rows of a node share
-        their columns (the block pattern); checked."""
+        their columns (the block pattern); checked. With the multigrid's rediscretised
+        coarse operator (multigrid.py), D: an AIJ Mat of K - A in those rows (_difference)."""
         cs, m = self.cs, self.cs.local_size
         rows = np.concatenate(cs.dofs).astype(PETSc.IntType)
         self.rows = rows
-        isr = PETSc.IS().createGeneral(rows, comm=self.comm)
         self.padded = []
         for M in [self.A] + [M for M in self.mats if M is not self.A]:   # A first, once
-            c0, c1 = M.getOwnershipRangeColumn()
-            isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=self.comm)
-            S = M.createSubMatrix(isr, isc)
-            isc.destroy()
+            S = _rows_of(M, rows)
             if M is self.A:
                 self.S, self.ys = S, S.createVecLeft()     # R at the contact rows: S x - b
             if any(M is N for N in self.mats):
                 self.padded.append(self._padded(S, m))
             if M is not self.A:
                 S.destroy()
-        isr.destroy()
         self.cols, self.vals = self.padded[0]
         self.own = [np.argmax(self.cols[2] == np.asarray(cs.dofs[k])[:, None], axis=1)
                     for k in range(3)]
+        self.D = None
+        if self.mg is not None and self.mg.rediscretised:
+            self.D = _pattern_matrix(self.A, rows, self.cols.reshape(3 * m, -1))
 
     def _padded(self, S, m):
         ia, ja, a = S.getValuesCSR()
@@ -230,8 +277,7 @@ class CoulombNewton(Loop):
         for M in self.mats:
             M.assemble()
         if self._symmetric:
-            self.K.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-            self.K.setOption(PETSc.Mat.Option.SPD, True)
+            fem.set_spd(self.K)
 
     def _reaction(self, x):
         """R = A x - b at the contact dofs (from A's own rows, whatever the Jacobian has
@@ -351,8 +397,26 @@ class CoulombNewton(Loop):
         K.zeroRows(rows, self.diag_scale, self.dx, rhs)
         for M in self.mats[1:]:
             M.zeroRows(rows, diag=0.0)
+        if self.D is not None:
+            self._difference(st, q, V if q.size else None)
         _EV_MAT.end()
         return K, rhs
+
+    def _difference(self, st, q, V):
+        """D = K - A in the contact rows (the multigrid's coarse correction): the slip rows
+        (k = 0, 1 of the slip nodes q: V against A's), the eliminated rows (the active
+        nodes' normal rows, the stick nodes' tangential rows: diag_scale e_i against A's)."""
+        dv = np.zeros_like(self.vals)
+        if V is not None:
+            for k in range(2):
+                dv[k][q] = V[k] - self.vals[k][q]
+        for k, sel in ((2, st["active"]), (0, st["stick"]), (1, st["stick"])):
+            i = np.flatnonzero(sel)
+            dv[k][i] = -self.vals[k][i]
+            dv[k][i, self.own[k][i]] += self.diag_scale
+        W = dv.shape[2]
+        self._set_contact_rows(self.rows, self.cols.reshape(-1, W), dv.reshape(-1, W), self.D)
+        self.D.assemble()
 
     def _linear_solve(self, K, rhs, rtol):
         """dx <- K^-1 rhs to rtol, with the eliminated rows set exactly. The preconditioner
@@ -374,6 +438,8 @@ class CoulombNewton(Loop):
             self.ksp.getPC().setReusePreconditioner(reuse)
             if not reuse:
                 self.pc_setups += 1
+                if self.mg is not None:
+                    self.mg.set_operators(self.ksp, K, self.D)
             self._rebuild = False
             with multigrid.galerkin_options(self.ksp):
                 self.ksp.solve(b, sol)
@@ -409,6 +475,8 @@ class CoulombNewton(Loop):
             self._restore()
             if self.split is None:        # (a reset fieldsplit would forget its splits)
                 self.ksp.reset()          # the preconditioner's memory (its coarse levels)
+            if self.mg is not None:
+                self.mg.release()
             _EV_ITER.end()
         hint = self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else \
             self._stall_hint if reason == DIVERGED_STAGNATION else None

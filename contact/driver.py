@@ -123,9 +123,12 @@ def solve_linear(pr):
     split = pr.disc.pressure_split(options.get("newton_pressure_split", pr.scene),
                                    PETSc.Options().hasName("elastic_pc_type"))
     if split is None:
-        ksp = fem.elasticity_ksp(pr.A, mg=pr.disc.multigrid)
+        mg = pr.disc.multigrid
+        ksp = fem.elasticity_ksp(pr.A, mg=mg)
         with multigrid.galerkin_options(ksp):
             ksp.solve(pr.b, pr.x)
+        if mg is not None:
+            mg.release()                 # its Galerkin products, until the next solve
     else:
         ksp = split.linear_ksp()
         rhs, sol = split.vecs(pr.b, pr.x)

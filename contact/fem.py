@@ -300,25 +300,28 @@ def _aij_family(mat_type):
     return "aij" in t and "baij" not in t
 
 
-def create_matrix(dm, conn):
-    """An empty AIJ matrix (block size 3, the DM's local-to-global map, the DM's Mat type:
-    -dm_mat_type / -mat_type) preallocated exactly for the Q1 pattern of the cells conn
-    (n, 8) or (n, 27) (two nodes couple when they share a cell), in place of dm.createMat(), whose
-    DMPlex preallocation walks the mesh topology: 1.48 s against 0.42 s at Nd = 40 on 2
-    ranks, the same matrix. Each rank lists the distinct (row, column) node pairs of its
-    cells, in bounded chunks of rows; the pairs of rows it does not own go to their
-    owners, which count a row's distinct columns over its own pairs and those received. A
-    Mat type outside the AIJ family (BAIJ, SBAIJ, IS, dense) is refused: the solvers need
-    MatPtAP (the multigrid's Galerkin operators, GAMG) and the SPD flag, which PETSc 3.18
-    lacks for (MPI)BAIJ."""
+def create_matrix(dm, conn, blocked=False):
+    """An empty matrix (block size 3, the DM's local-to-global map) preallocated exactly
+    for the Q1 pattern of the cells conn (n, 8) or (n, 27) (two nodes couple when they
+    share a cell), in place of dm.createMat(), whose DMPlex preallocation walks the mesh
+    topology: 1.48 s against 0.42 s at Nd = 40 on 2 ranks, the same matrix. Each rank
+    lists the distinct (row, column) node pairs of its cells, in bounded chunks of rows;
+    the pairs of rows it does not own go to their owners, which count a row's distinct
+    columns over its own pairs and those received.
+    Type: BAIJ (the nodes' 3 x 3 blocks) when `blocked` (multigrid.blocked: the multigrid
+    with rediscretised coarse operators, which needs no MatPtAP of it), else the DM's AIJ
+    type (-dm_mat_type / -mat_type). A Mat type outside the AIJ family asked for (BAIJ,
+    SBAIJ, IS, dense) is refused: the Galerkin products (MatPtAP: GAMG, the multigrid of
+    q2 and the mixed split) and the SPD flag need an AIJ type in PETSc 3.18."""
     mat_type = options.requested_type("mat_type")
     if not _aij_family(mat_type):
         raise ValueError(f"-mat_type {mat_type}: the stiffness must be an AIJ type (aij, "
-                         f"aijcusparse, aijkokkos, ...): the multigrid's Galerkin products "
-                         f"(MatPtAP) and the SPD flag need one")
+                         f"aijcusparse, aijkokkos, ...) when one is asked for: the Galerkin "
+                         f"products (MatPtAP) and the SPD flag need one (without -mat_type "
+                         f"the default solver's stiffness is BAIJ where its multigrid allows)")
     _EV_PREALLOC.begin()
     try:
-        return _preallocated(dm, conn, mat_type)
+        return _preallocated(dm, conn, PETSc.Mat.Type.BAIJ if blocked else mat_type)
     finally:
         _EV_PREALLOC.end()
 
@@ -370,7 +373,9 @@ def _preallocated(dm, conn, mat_type):
         local[lgb[mine] - r0] = np.flatnonzero(mine)
         count[rows - r0] = 0
         add(np.union1d(pairs(local[rows - r0]), got))
-    d, o = (np.repeat(3 * count[:, k], 3).astype(PETSc.IntType) for k in range(2))
+    blocked = mat_type == PETSc.Mat.Type.BAIJ          # block rows' counts, in blocks
+    d, o = (count[:, k].astype(PETSc.IntType) if blocked else
+            np.repeat(3 * count[:, k], 3).astype(PETSc.IntType) for k in range(2))
     A = PETSc.Mat().create(comm=comm)
     n_own = r1 - r0
     A.setSizes(((3 * n_own, 3 * n_global), (3 * n_own, 3 * n_global)), bsize=3)
@@ -381,14 +386,14 @@ def _preallocated(dm, conn, mat_type):
 
 
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
-                       lam=None):
-    """Global stiffness matrix A (AIJ, block size 3: create_matrix) of `element` (ELEMENTS),
-    unconstrained; in the basis of a contact frame (contact/frame.py: T^T A T) when one is
-    given. lam: Lame's lambda instead of that of (young, poisson) (a split of the
-    volumetric stiffness, mixed.py)."""
+                       lam=None, blocked=False):
+    """Global stiffness matrix A (AIJ, or BAIJ when `blocked`; block size 3: create_matrix)
+    of `element` (ELEMENTS), unconstrained; in the basis of a contact frame
+    (contact/frame.py: T^T A T) when one is given. lam: Lame's lambda instead of that of
+    (young, poisson) (a split of the volumetric stiffness, mixed.py)."""
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
-    A = create_matrix(dm, conn)
+    A = create_matrix(dm, conn, blocked)
     if A.getBlockSize() != 3:
         A.setBlockSize(3)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
@@ -660,12 +665,18 @@ def eliminate_dirichlet(A, b, rows):
 def configure_elasticity(A, coordinates, frame=None):
     """Block size 3, SPD flag and the rigid-body near-nullspace on A (in the basis of a
     contact frame when one is given)."""
-    A.setOption(PETSc.Mat.Option.SPD, True)
-    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    set_spd(A)
     ns = (PETSc.NullSpace().createRigidBody(coordinates) if frame is None
           else frame.rigid_body_nullspace(coordinates))
     A.setNearNullSpace(ns)
     return ns
+
+
+def set_spd(A):
+    """A's SYMMETRIC flag, and SPD where its type has one (PETSc 3.18: not BAIJ)."""
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    if A.getType() not in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ):
+        A.setOption(PETSc.Mat.Option.SPD, True)
 
 
 def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
@@ -678,4 +689,6 @@ def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
     ksp.setType(PETSc.KSP.Type.CG)
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
     multigrid.configure(ksp, mg)
+    if mg is not None:
+        mg.set_operators(ksp, A)             # (a rediscretised multigrid's levels)
     return ksp

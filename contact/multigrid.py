@@ -2,11 +2,24 @@
 
 The levels of a refined mesh (hierarchy.py) give PCMG what it needs: the Q1 interpolation
 P_j from level j - 1 to level j (hierarchy.prolongation), and Galerkin coarse operators
-P^T K P (PETSc's -pc_mg_galerkin both), so the coarse levels see whatever the fine
-operator is: the stiffness A with its clamped rows eliminated, or the Newton Jacobian with
-its contact rows changed (contact/coulomb.py). The finest interpolation is turned into the
-problem's basis (T^T P with a contact frame, contact/frame.py) and is zero on the clamped
-rows (a coarse correction never moves a clamped dof). Smoothing: Chebyshev with point-block
+P^T K P, so the coarse levels see whatever the fine operator is: the stiffness A with its
+clamped rows eliminated, or the Newton Jacobian with its contact rows changed
+(contact/coulomb.py). The finest interpolation is turned into the problem's basis (T^T P
+with a contact frame, contact/frame.py) and is zero on the clamped rows (a coarse
+correction never moves a clamped dof).
+
+Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
+  BAIJ (q1 in the Newton mode, the default): the first coarse level's stiffness A_c is
+      assembled on its own mesh (rediscretised) and the fine operator K = A + D (D: the
+      Jacobian's changes, in the contact rows only) gives P^T K P = A_c + P^T D P: for the
+      nested Q1 spaces P^T A P = A_c on the free dofs (P is zero on the clamped columns
+      too), so this is the Galerkin operator without a product of the fine matrix, which
+      PETSc (3.18 and later) cannot form for BAIJ. The levels below are Galerkin products
+      (MatPtAP of AIJ). BAIJ stores a 3 x 3 block with one column index: 8.4 B per
+      nonzero against AIJ's 12, and at Nd = 40 on 2 ranks its MatMult takes 12.5 ms
+      against 36 ms and its assembly 0.45 s against 1.9 s (runs/results/scaling.md).
+  AIJ (-mat_type aij, q2, bbar and the mixed split, the paper's loops): PETSc's Galerkin
+      products at every level (-pc_mg_galerkin both). Smoothing: Chebyshev with point-block
 Jacobi (the nodes' 3 x 3 blocks; point Jacobi with GPU Vec types: level_pc_type); the
 coarsest level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
 (COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
@@ -31,8 +44,12 @@ COARSE_LU_MAX = 5000
 #: iterations with the GAMG cycle, 525 with LU, in the same time (132 and 127 s)
 COARSE_LU_MAX_SPLIT = 30000
 
-#: defaults under the KSP's prefix (the command line wins)
+#: defaults under the KSP's prefix (the command line wins), for PETSc's Galerkin products
 DEFAULTS = {"pc_mg_galerkin": "both"}
+#: the KSPs whose preconditioner is this multigrid (coulomb.py, fem.elasticity_ksp)
+PREFIXES = ("newton_", "elastic_")
+#: SUBSET_NONZERO_PATTERN: the correction P^T D P lies in A_c's pattern
+SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 #: the Galerkin products P^T K P without the intermediate K P kept (PETSc's "allatonce",
 #: for parallel matrices; not for GAMG, whose set-up it slows 3x):
 #: at Nd = 40 on 2 ranks the whole run's peak falls from 1032 to 765 MiB per rank, for
@@ -40,15 +57,50 @@ DEFAULTS = {"pc_mg_galerkin": "both"}
 GALERKIN = {"matptap_via": "allatonce"}
 
 
+def blocked(disc):
+    """Whether disc's stiffness is BAIJ, its multigrid's first coarse operator
+    rediscretised (the module docstring): q1 on a mesh hierarchy in the Newton mode, unless
+    the command line asks for a Mat type (-mat_type aij: AIJ and PETSc's Galerkin
+    products), GPU Vecs, another preconditioner (-newton_pc_type gamg, ...) or its own
+    Galerkin setting (-newton_pc_mg_galerkin)."""
+    opts = PETSc.Options()
+    if (disc.level_index == 0 or disc.element != "q1"
+            or options.get("solver_mode", disc.scene) != "newton"
+            or options.requested_type("mat_type") is not None or _gpu_vecs()):
+        return False
+    for prefix in PREFIXES:
+        if opts.hasName(prefix + "pc_mg_galerkin"):
+            return False
+        if opts.hasName(prefix + "pc_type") and opts.getString(prefix + "pc_type") != "mg":
+            return False
+    return True
+
+
+def _gpu_vecs():
+    vec = (options.requested_type("vec_type") or "").lower()
+    return any(k in vec for k in ("cuda", "kokkos", "hip", "viennacl"))
+
+
 class Multigrid:
     """The interpolations of PCMG for the problem on level `level` of `hierarchy`:
     frame (contact/frame.py, or None) and clamped (owned rows in the problem's basis) as
-    the discretisation's. Mats are built on first use and shared by every solve."""
+    the discretisation's. Mats are built on first use and shared by every solve.
+    coarse: (A_c, free_c): the first coarse level's rediscretised stiffness (AIJ, x, y, z,
+    its clamped dofs eliminated) and a Vec, 0 at those dofs and 1 elsewhere, or None for
+    PETSc's Galerkin products (the module docstring)."""
 
-    def __init__(self, hierarchy, level, frame=None, clamped=()):
+    def __init__(self, hierarchy, level, frame=None, clamped=(), coarse=None):
         self.hierarchy, self.level = hierarchy, level
         self.frame, self.clamped = frame, clamped
         self._finest = None
+        self.coarse, self._free_c = coarse if coarse is not None else (None, None)
+        self._C = None                   # P^T D P (D: the Jacobian's change), kept for reuse
+        self._added = False              # whether A_c holds + P^T D P now
+        self._products = {}              # level j -> the Galerkin operator there (j < L - 1)
+
+    @property
+    def rediscretised(self):
+        return self.coarse is not None
 
     @property
     def n_levels(self):
@@ -73,6 +125,8 @@ class Multigrid:
             else:
                 Pf = P if last else P.duplicate(copy=True)
             Pf.zeroRows(self.clamped, diag=0.0)
+            if self._free_c is not None:         # and on the coarse clamped columns
+                Pf.diagonalScale(R=self._free_c)
             self._finest = Pf
         return self._finest
 
@@ -93,7 +147,45 @@ class Multigrid:
         if self.hierarchy.levels[0].n_dofs > coarse_lu_max:
             pc.getMGCoarseSolve().getPC().setType(PETSc.PC.Type.GAMG)
         prefix = ksp.getOptionsPrefix() or ""
-        return {prefix + k: v for k, v in DEFAULTS.items()}
+        return {} if self.rediscretised else {prefix + k: v for k, v in DEFAULTS.items()}
+
+    def set_operators(self, ksp, K, D=None):
+        """The level operators of ksp's PCMG for the fine operator K = A + D, before its
+        set-up (rediscretised only; nothing for PETSc's Galerkin products or another PC):
+        A_c + P^T D P on the first coarse level (D: an AIJ Mat of K - A, nonzero in the
+        contact rows only, or None for A itself), Galerkin products below it."""
+        pc = ksp.getPC()
+        if not self.rediscretised or pc.getType() != PETSc.PC.Type.MG:
+            return
+        with options.inserted(GALERKIN if K.getComm().getSize() > 1 else {}):
+            self._correct(D)
+            ops = {self.level: K, self.level - 1: self.coarse}
+            for j in range(self.level - 1, 0, -1):          # P_j: level j - 1 -> level j
+                prev = self._products.get(j - 1)
+                ops[j - 1] = ops[j].PtAP(self.interpolation(j), result=prev)
+                self._products[j - 1] = ops[j - 1]
+        for j in range(self.n_levels - 1, -1, -1):
+            pc.getMGSmoother(j).setOperators(ops[j])
+
+    def _correct(self, D):
+        """A_c + P^T D P in place: the last correction taken off (to round-off), the new
+        one added (its product's pattern kept from solve to solve)."""
+        if self._added:
+            self.coarse.axpy(-1.0, self._C, SUBSET)
+            self._added = False
+        if D is None:
+            return
+        self._C = D.PtAP(self.interpolation(self.level), result=self._C)
+        self.coarse.axpy(1.0, self._C, SUBSET)
+        self._added = True
+
+    def release(self):
+        """After a solve (its KSP reset): A_c as assembled (to round-off) and the Galerkin
+        products freed until the next solve's set-up."""
+        self._correct(None)
+        for M in self._products.values():
+            M.destroy()
+        self._products = {}
 
     def set_interpolations(self, ksp):
         """(Again) the interpolations of ksp's PCMG (KSPReset drops them); nothing when
@@ -111,8 +203,7 @@ def level_pc_type():
     -dm_vec_type cuda, kokkos, hip: PETSc 3.18 applies PBJACOBI on the host). At Nd = 40
     on 2 ranks point-block Jacobi halves the default solver's Krylov iterations (46 -> 22)
     and its solve time falls 26 % (19.2 -> 14.2 s), the same answer."""
-    vec = (options.requested_type("vec_type") or "").lower()
-    if any(k in vec for k in ("cuda", "kokkos", "hip", "viennacl")):
+    if _gpu_vecs():
         return PETSc.PC.Type.JACOBI
     return PETSc.PC.Type.PBJACOBI
 
@@ -126,12 +217,13 @@ def galerkin_options(ksp):
     return options.inserted(GALERKIN if mine else {})
 
 
-def for_problem(disc):
+def for_problem(disc, coarse=None):
     """The Multigrid of a discretisation, or None when its mesh has one level (GAMG); the
-    discretisation keeps its own (`disc.multigrid`), shared by every solve on it."""
+    discretisation keeps its own (`disc.multigrid`), shared by every solve on it. coarse:
+    Multigrid's, for a BAIJ stiffness (discretisation.py assembles it)."""
     if disc.level_index == 0:
         return None
-    return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped)
+    return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped, coarse)
 
 
 def configure(ksp, mg, default="gamg"):

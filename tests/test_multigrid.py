@@ -45,9 +45,10 @@ def test_finest_interpolation_in_the_problems_basis(tilted):
 def _linear_its(nd, pc=None):
     """CG iterations of the beam without contact (its A and b) to rtol 1e-8 (a hierarchy
     of at least 3 levels on any rank count: c2f_levels=2)."""
-    pr = ContactProblem(paper_scene(nd=nd, mode="newton"), PETSc.COMM_WORLD, c2f_levels=2)
     with options.inserted({"elastic_pc_type": pc} if pc else {}):
-        ksp = fem.elasticity_ksp(pr.A, rtol=1e-8, mg=multigrid.for_problem(pr.disc))
+        pr = ContactProblem(paper_scene(nd=nd, mode="newton"), PETSc.COMM_WORLD,
+                            c2f_levels=2)
+        ksp = fem.elasticity_ksp(pr.A, rtol=1e-8, mg=pr.disc.multigrid)
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     x = pr.b.duplicate()
     ksp.solve(pr.b, x)
@@ -75,20 +76,86 @@ def test_cg_iterations_do_not_grow_with_nd():
 
 
 def test_newton_with_multigrid_is_newton_with_gamg():
-    """The default solver on the Nd = 8 beam: PCMG (default) and GAMG (-newton_pc_type
-    gamg) give the same displacement and pressure, and with exact linear solves the same
-    Newton steps."""
+    """The default solver on the Nd = 8 beam: PCMG (default: BAIJ, the first coarse
+    operator rediscretised), PCMG with PETSc's Galerkin products (-mat_type aij) and GAMG
+    (-newton_pc_type gamg) give the same displacement and pressure, and with exact linear
+    solves the same Newton steps."""
     exact = {"newton_ew": "false", "newton_ksp_rtol": "1e-12"}
     runs = {}
-    for pc in ("mg", "gamg"):
-        with options.inserted(dict(exact, newton_pc_type=pc)):
+    for name, pc, extra in (("mg", "mg", {}), ("galerkin", "mg", {"mat_type": "aij"}),
+                            ("gamg", "gamg", {})):
+        with options.inserted(dict(exact, newton_pc_type=pc, **extra)):
             pr = solve(paper_scene(nd=8, mode="newton"))
         assert pr.loops.inner.ksp.getPC().getType() == pc
-        runs[pc] = pr
-    (um, lm), (ug, lg) = fields(runs["mg"]), fields(runs["gamg"])
-    assert rel_err(um, ug) < 1e-8
-    assert np.abs(lm - lg).max() < 1e-8 * np.abs(lg).max()
-    assert runs["mg"].iterations()["inner_total"] == runs["gamg"].iterations()["inner_total"]
+        assert ("baij" in pr.A.getType()) == (name == "mg"), pr.A.getType()
+        assert pr.disc.multigrid.rediscretised == (name == "mg")
+        runs[name] = pr
+    ug, lg = fields(runs["gamg"])
+    for name in ("mg", "galerkin"):
+        um, lm = fields(runs[name])
+        assert rel_err(um, ug) < 1e-8
+        assert np.abs(lm - lg).max() < 1e-8 * np.abs(lg).max()
+        assert runs[name].iterations()["inner_total"] == \
+            runs["gamg"].iterations()["inner_total"]
+
+
+def _masked(M, free, v):
+    """M (free v) at the free dofs (0 elsewhere)."""
+    y, fv = M.createVecLeft(), v.copy()
+    fv.pointwiseMult(fv, free)
+    M.mult(fv, y)
+    y.pointwiseMult(y, free)
+    return y
+
+
+def _same_on_free(M, G, free):
+    v = G.createVecRight()
+    v.setRandom()
+    y, g = _masked(M, free, v), _masked(G, free, v)
+    y.axpy(-1.0, g)
+    return y.norm() / g.norm()
+
+
+@pytest.mark.parametrize("tilted", [False, True], ids=["axes", "tilted_foundation"])
+def test_rediscretised_coarse_operator_is_the_galerkin_product(tilted):
+    """The default (BAIJ) multigrid's first coarse operator, A_c + P^T D P (A_c assembled on
+    the coarse mesh, D = K - A from the Newton step's contact rows), against PETSc's own
+    Galerkin product P^T K P of the Jacobian K (converted to AIJ) at a state off the
+    solution (active, stick and slip nodes), on the coarse dofs that are not clamped (P is
+    zero on the others); and A_c alone against P^T A P. The beam's cells are boxes, the
+    Q1 spaces nested: equal to rounding, in the contact frame too."""
+    sc = paper_scene(nd=4, mode="newton", c2f_levels=1)      # (2 levels on any ranks)
+    if tilted:
+        sc["contact"]["foundation"] = {"normal": [0.0, 0.05, 1.0], "point": [0.0, 0.0, -1e-5]}
+        sc["contact"]["friction"] = 0.5                     # (stick nodes there too)
+    pr = ContactProblem(scenes.validate(sc), PETSc.COMM_WORLD).solve()
+    n, mg = pr.loops.inner, pr.disc.multigrid
+    assert mg.rediscretised and n.D is not None
+    P = mg.interpolation(pr.level)
+    clamped_c = mg._free_c.duplicate()                  # P is zero on the clamped columns
+    clamped_c.set(1.0)
+    clamped_c.axpy(-1.0, mg._free_c)
+    y = P.createVecLeft()
+    P.mult(clamped_c, y)
+    assert clamped_c.norm() > 0 and y.norm() == 0.0
+    x = pr.x.copy()
+    noise = x.duplicate()
+    noise.setRandom()
+    noise.pointwiseMult(noise, n.free)
+    x.axpy(0.05 * x.norm() / noise.norm(), noise)
+    _, st = n._state(x, n.r)
+    mpi = pr.comm.tompi4py()
+    assert mpi.allreduce(int(st["slip"].sum())) > 0 and mpi.allreduce(int(st["stick"].sum()))
+    try:
+        K, _ = n._system(st)
+        G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).PtAP(P)
+        mg._correct(n.D)
+        assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12
+    finally:
+        n._restore()
+        mg.release()
+    G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).PtAP(P)
+    assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12
 
 
 def test_one_level_mesh_gets_gamg():
