@@ -12,7 +12,6 @@ vectors, and the solution lives in the problem (problem.py).
 """
 import numpy as np
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from . import fem, mesh, mixed, multigrid, options
 from .contactset import ContactSet
@@ -127,35 +126,7 @@ class Discretisation:
         self.n_dofs = self.A.getSize()[0]
         #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
         #: finest interpolation is built once, for every load increment's solve
-        self.multigrid = multigrid.for_problem(
-            self, self._coarse_stiffness() if blocked else None)
-
-    def _coarse_stiffness(self):
-        """(A_c, free_c) of multigrid.Multigrid: the Q1 stiffness of the level below, in
-        x, y, z, with the dofs eliminated whose fine dofs are clamped (a coarse vertex is
-        a fine one, where P's row is 1 at it, and a coarse basis function vanishes on a
-        clamped face that does not hold its vertex: (P^T m)_c > 0 for the fine clamped
-        mask m exactly at the coarse dofs on the clamped parts)."""
-        lv = self.hierarchy.levels[self.level_index - 1]
-        mat = self.scene["material"]
-        A_c = fem.assemble_stiffness(lv.dm, lv.conn, lv.coords, mat["young"], mat["poisson"])
-        P = self.hierarchy.prolongation(self.level_index)       # in x, y, z
-        m, free_c = P.createVecLeft(), P.createVecRight()
-        m.set(0.0)
-        m.setValues(self.clamped_xyz, np.ones(len(self.clamped_xyz)))
-        m.assemble()
-        P.multTranspose(m, free_c)
-        c0 = free_c.getOwnershipRange()[0]
-        clamped_c = (c0 + np.flatnonzero(free_c.getArray(readonly=True) > 0.5)).astype(
-            PETSc.IntType)
-        b = A_c.createVecLeft()
-        fem.eliminate_dirichlet(A_c, b, clamped_c)
-        b.destroy()
-        m.destroy()
-        free_c.set(1.0)
-        free_c.setValues(clamped_c, np.zeros(clamped_c.size))
-        free_c.assemble()
-        return A_c, free_c
+        self.multigrid = multigrid.for_problem(self, rediscretise=blocked)
 
     def pressure_split(self, mode="auto", pc_given=False):
         """The mixed u-p split of a nearly incompressible bbar body's linear solves, or

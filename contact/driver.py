@@ -124,7 +124,7 @@ def solve_linear(pr):
                                    PETSc.Options().hasName("elastic_pc_type"))
     if split is None:
         mg = pr.disc.multigrid
-        ksp = fem.elasticity_ksp(pr.A, mg=mg)
+        ksp = multigrid.elasticity_ksp(pr.A, mg=mg)
         with multigrid.galerkin_options(ksp):
             ksp.solve(pr.b, pr.x)
         if mg is not None:

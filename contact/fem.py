@@ -40,7 +40,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import multigrid, options
+from . import options
 from .mesh import HEX_REF, MeshError, cross3
 
 _G = 1.0 / np.sqrt(3.0)
@@ -677,18 +677,3 @@ def set_spd(A):
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     if A.getType() not in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ):
         A.setOption(PETSc.Mat.Option.SPD, True)
-
-
-def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
-    """CG for A, preconditioned by geometric multigrid on the mesh hierarchy (mg, a
-    multigrid.Multigrid) or else GAMG (options prefix `prefix`: the command line wins,
-    -elastic_pc_type gamg included)."""
-    ksp = PETSc.KSP().create(comm=A.getComm())
-    ksp.setOptionsPrefix(prefix)
-    ksp.setOperators(A)
-    ksp.setType(PETSc.KSP.Type.CG)
-    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
-    multigrid.configure(ksp, mg)
-    if mg is not None:
-        mg.set_operators(ksp, A)             # (a rediscretised multigrid's levels)
-    return ksp

@@ -31,9 +31,10 @@ The Galerkin products are formed "all at once" (GALERKIN): less memory, a little
 A mesh of one level (gmsh, a mesh file, -mesh_refine 0, an odd Nd) gets GAMG, as does any
 solve given -<prefix>pc_type gamg: the options database has the last word.
 """
+import numpy as np
 from petsc4py import PETSc
 
-from . import options
+from . import fem, options
 
 #: the coarsest level is factored (LU) up to this many dofs, else one GAMG cycle solves it.
 #: Hertz (a gmsh coarse level) with q2, 1 rank: nd = 3 (~10,000 coarse dofs) 25 -> 18 s,
@@ -85,22 +86,51 @@ class Multigrid:
     """The interpolations of PCMG for the problem on level `level` of `hierarchy`:
     frame (contact/frame.py, or None) and clamped (owned rows in the problem's basis) as
     the discretisation's. Mats are built on first use and shared by every solve.
-    coarse: (A_c, free_c): the first coarse level's rediscretised stiffness (AIJ, x, y, z,
-    its clamped dofs eliminated) and a Vec, 0 at those dofs and 1 elsewhere, or None for
-    PETSc's Galerkin products (the module docstring)."""
+    rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz) for
+    a first coarse operator assembled on the level below (the module docstring; prepare);
+    clamped_xyz: the clamped rows in x, y, z."""
 
-    def __init__(self, hierarchy, level, frame=None, clamped=(), coarse=None):
+    def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None):
         self.hierarchy, self.level = hierarchy, level
         self.frame, self.clamped = frame, clamped
         self._finest = None
-        self.coarse, self._free_c = coarse if coarse is not None else (None, None)
+        self._rediscretise = rediscretise
+        self.coarse = self._free_c = None  # A_c (AIJ), and 0 at its clamped dofs, else 1
         self._C = None                   # P^T D P (D: the Jacobian's change), kept for reuse
         self._added = False              # whether A_c holds + P^T D P now
         self._products = {}              # level j -> the Galerkin operator there (j < L - 1)
 
     @property
     def rediscretised(self):
-        return self.coarse is not None
+        return self._rediscretise is not None
+
+    def prepare(self):
+        """A_c of a rediscretised multigrid (once; before the hierarchy frees the level
+        below, problem.py): the Q1 stiffness of that level in x, y, z, its dofs
+        eliminated whose fine dofs are clamped. A coarse vertex is a fine one, where P's
+        row is 1 at it, and a coarse basis function vanishes on a clamped face that does
+        not hold its vertex: (P^T m)_c > 0 for the fine clamped mask m exactly at the
+        coarse dofs on the clamped parts (P of the hierarchy, in x, y, z)."""
+        if not self.rediscretised or self.coarse is not None:
+            return
+        young, poisson, clamped_xyz = self._rediscretise
+        lv = self.hierarchy.levels[self.level - 1]
+        A_c = fem.assemble_stiffness(lv.dm, lv.conn, lv.coords, young, poisson)
+        P = self.hierarchy.prolongation(self.level)
+        m, free_c = P.createVecLeft(), P.createVecRight()
+        m.set(0.0)
+        m.setValues(clamped_xyz, np.ones(len(clamped_xyz)))
+        m.assemble()
+        P.multTranspose(m, free_c)
+        c0 = free_c.getOwnershipRange()[0]
+        clamped_c = (c0 + np.flatnonzero(free_c.getArray(readonly=True) > 0.5)).astype(
+            PETSc.IntType)
+        fem.eliminate_dirichlet(A_c, m.duplicate(), clamped_c)
+        m.destroy()
+        free_c.set(1.0)
+        free_c.setValues(clamped_c, np.zeros(clamped_c.size))
+        free_c.assemble()
+        self.coarse, self._free_c = A_c, free_c
 
     @property
     def n_levels(self):
@@ -115,6 +145,7 @@ class Multigrid:
         if j < self.level:
             return self.hierarchy.prolongation(j)
         if self._finest is None:
+            self.prepare()                       # (free_c: P's clamped columns)
             last = self.level == len(self.hierarchy.levels) - 1
             P = self.hierarchy.take_prolongation(j) if last else \
                 self.hierarchy.prolongation(j)
@@ -157,6 +188,7 @@ class Multigrid:
         pc = ksp.getPC()
         if not self.rediscretised or pc.getType() != PETSc.PC.Type.MG:
             return
+        self.prepare()
         with options.inserted(GALERKIN if K.getComm().getSize() > 1 else {}):
             self._correct(D)
             ops = {self.level: K, self.level - 1: self.coarse}
@@ -217,13 +249,17 @@ def galerkin_options(ksp):
     return options.inserted(GALERKIN if mine else {})
 
 
-def for_problem(disc, coarse=None):
+def for_problem(disc, rediscretise=False):
     """The Multigrid of a discretisation, or None when its mesh has one level (GAMG); the
-    discretisation keeps its own (`disc.multigrid`), shared by every solve on it. coarse:
-    Multigrid's, for a BAIJ stiffness (discretisation.py assembles it)."""
+    discretisation keeps its own (`disc.multigrid`), shared by every solve on it.
+    rediscretise: its first coarse operator assembled on the level below (a BAIJ
+    stiffness: `blocked`)."""
     if disc.level_index == 0:
         return None
-    return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped, coarse)
+    mat = disc.scene["material"]
+    return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped,
+                     (mat["young"], mat["poisson"], disc.clamped_xyz) if rediscretise
+                     else None)
 
 
 def configure(ksp, mg, default="gamg"):
@@ -235,3 +271,18 @@ def configure(ksp, mg, default="gamg"):
         return
     with options.inserted(mg.setup(ksp)):
         ksp.setFromOptions()
+
+
+def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
+    """CG for A, preconditioned by geometric multigrid on the mesh hierarchy (mg, a
+    Multigrid) or else GAMG (options prefix `prefix`: the command line wins,
+    -elastic_pc_type gamg included)."""
+    ksp = PETSc.KSP().create(comm=A.getComm())
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    ksp.setType(PETSc.KSP.Type.CG)
+    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
+    configure(ksp, mg)
+    if mg is not None:
+        mg.set_operators(ksp, A)             # (a rediscretised multigrid's levels)
+    return ksp

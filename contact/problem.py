@@ -131,6 +131,8 @@ class ContactProblem:
         del coarse
         gc.collect()              # the coarse levels' matrices, before the fine solve
         if self.level == len(h.levels) - 1:
+            if self.disc.multigrid is not None:
+                self.disc.multigrid.prepare()        # (its coarse level's stiffness)
             h.release_below(self.level)              # their meshes too
         return l0, g0
 

@@ -9,7 +9,7 @@ from conftest import fields, paper_scene, rel_err, solve
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contact import fem, multigrid, options, scene as scenes
+from contact import multigrid, options, scene as scenes
 from contact.problem import ContactProblem
 
 
@@ -48,7 +48,7 @@ def _linear_its(nd, pc=None):
     with options.inserted({"elastic_pc_type": pc} if pc else {}):
         pr = ContactProblem(paper_scene(nd=nd, mode="newton"), PETSc.COMM_WORLD,
                             c2f_levels=2)
-        ksp = fem.elasticity_ksp(pr.A, rtol=1e-8, mg=pr.disc.multigrid)
+        ksp = multigrid.elasticity_ksp(pr.A, rtol=1e-8, mg=pr.disc.multigrid)
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     x = pr.b.duplicate()
     ksp.solve(pr.b, x)
