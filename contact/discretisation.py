@@ -122,7 +122,10 @@ class Discretisation:
                                         element=self.element, blocked=blocked)
         self._loads()
         self.contact_diagonal = self._contact_diagonal()
-        self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame)
+        # the rigid-body modes are GAMG's: the multigrid with rediscretised levels (BAIJ)
+        # has no use for them (6 Vecs of A's size: 0.05 kB per dof)
+        self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame,
+                                                  near_nullspace=not blocked)
         self.n_dofs = self.A.getSize()[0]
         #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
         #: finest interpolation is built once, for every load increment's solve

@@ -662,10 +662,12 @@ def eliminate_dirichlet(A, b, rows):
     return scale
 
 
-def configure_elasticity(A, coordinates, frame=None):
+def configure_elasticity(A, coordinates, frame=None, near_nullspace=True):
     """Block size 3, SPD flag and the rigid-body near-nullspace on A (in the basis of a
-    contact frame when one is given)."""
+    contact frame when one is given); returns the near-nullspace (None without it)."""
     set_spd(A)
+    if not near_nullspace:
+        return None
     ns = (PETSc.NullSpace().createRigidBody(coordinates) if frame is None
           else frame.rigid_body_nullspace(coordinates))
     A.setNearNullSpace(ns)
