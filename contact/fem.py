@@ -354,23 +354,41 @@ def _preallocated(dm, conn, mat_type):
         ga, gb = keys // n_global, keys % n_global
         np.add.at(count, (ga - r0, np.where((gb >= r0) & (gb < r1), 0, 1)), 1)
 
+    def counts(rows):
+        """(diagonal, off) block counts of local rows (k,): each row's candidate columns
+        (the nodes of its cells, -1 padded) sorted row by row, the first of each run
+        counted (no global sort: at Nd = 80 on 2 ranks 7.8 s -> 2.4 s)."""
+        lens = ptr[rows + 1] - ptr[rows]
+        slot = np.arange(int(lens.max()) if lens.size else 0)
+        valid = slot[None, :] < lens[:, None]
+        at = order[np.minimum(ptr[rows][:, None] + slot, flat.size - 1)] // per
+        cand = np.where(valid[:, :, None], lgb[conn[at]], -1).reshape(rows.size, -1)
+        cand.sort(axis=1)
+        first = np.ones(cand.shape, dtype=bool)
+        first[:, 1:] = cand[:, 1:] != cand[:, :-1]
+        first &= cand >= 0
+        diag = first & (cand >= r0) & (cand < r1)
+        return diag.sum(axis=1), first.sum(axis=1) - diag.sum(axis=1)
+
     count = np.zeros((r1 - r0, 2), dtype=np.int64)                # (diagonal, off) block
-    send = [[] for _ in range(mpi.size)]
-    for k0 in range(0, nn, rows_at_once):
-        keys = pairs(np.arange(k0, min(nn, k0 + rows_at_once)))
-        ga = keys // n_global
-        own = (ga >= r0) & (ga < r1)
-        add(keys[own])
-        owner = np.searchsorted(starts, ga[~own], side="right") - 1
+    mine = (lgb >= r0) & (lgb < r1)
+    owned, ghosts = np.flatnonzero(mine), np.flatnonzero(~mine)
+    step = max(1024, PATTERN_CHUNK // per)
+    for k0 in range(0, owned.size, step):
+        rows = owned[k0:k0 + step]
+        count[lgb[rows] - r0, 0], count[lgb[rows] - r0, 1] = counts(rows)
+    send = [[] for _ in range(mpi.size)]                  # the ghost rows' pairs: owners
+    for k0 in range(0, ghosts.size, rows_at_once):
+        keys = pairs(ghosts[k0:k0 + rows_at_once])
+        owner = np.searchsorted(starts, keys // n_global, side="right") - 1
         for p in np.unique(owner):                                # (ranks, not nodes)
-            send[p].append(keys[~own][owner == p])
+            send[p].append(keys[owner == p])
     got = np.concatenate(mpi.alltoall([np.concatenate(k) if k else np.zeros(0, np.int64)
                                        for k in send]))
     if got.size:                     # rows that other ranks' cells reach: counted anew
         rows = np.unique(got // n_global)
         local = np.zeros(r1 - r0, dtype=np.int64)
-        mine = (lgb >= r0) & (lgb < r1)
-        local[lgb[mine] - r0] = np.flatnonzero(mine)
+        local[lgb[mine] - r0] = owned
         count[rows - r0] = 0
         add(np.union1d(pairs(local[rows - r0]), got))
     blocked = mat_type == PETSc.Mat.Type.BAIJ          # block rows' counts, in blocks

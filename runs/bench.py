@@ -256,7 +256,7 @@ def part_scaling(args, lines):
     kb_nd = args.kb_nd
     lse = ("no contact, CG + GAMG (the LSE)", f"lse-nd{kb_nd}-np2",
            ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8", "-elastic_pc_type", "gamg"])
-    cases = [("default (newton, multigrid; BAIJ, rediscretised coarse operator)",
+    cases = [("default (newton, multigrid)",
               f"newton-nd{kb_nd}-np2", NEWTON),
              ("newton, -mat_type aij (PETSc's Galerkin products)",
               f"newton-aij-nd{kb_nd}-np2", NEWTON + ["-mat_type", "aij"]),

@@ -136,11 +136,15 @@ def test_bench(tmp_path):
     f, m1, m2 = (max(r.summary["peak_rss_mib"]) for r in (floor, p1, p2))
     if m2 > f:                                   # the smoke size is near the floor
         assert abs(float(mem["2"][3]) - (m1 - f) / (2 * (m2 - f))) <= 0.006
-    # the preconditioners side by side: the four cases at Nd = 4 on 2 ranks
-    for case in ("default (newton, multigrid)", "newton, -newton_pc_type gamg",
-                 "no contact, CG + multigrid", "no contact, CG + GAMG (the LSE)"):
+    lse_row, = table_rows(md, "no contact, CG + GAMG (the LSE)")
+    # the preconditioners side by side: the five cases at Nd = 4 on 2 ranks, in LSE
+    for case in ("default (newton, multigrid)", "newton, -mat_type aij (PETSc's Galerkin "
+                 "products)", "newton, -newton_pc_type gamg", "no contact, CG + multigrid",
+                 "no contact, CG + GAMG (the LSE)"):
         row, = table_rows(md, case)
-        assert int(row[1]) == n_p(4) and int(row[6]) > 0
+        assert len(row) == 9 and int(row[1]) == n_p(4) and int(row[6]) > 0
+        assert float(row[7]) > 0.0 and float(row[8]) > 0.0            # set-up, solve in LSE
+    assert float(lse_row[8]) == 1.0                                     # (the unit)
 
 
 def test_report(tmp_path):

@@ -128,13 +128,14 @@ def test_cli_files_on_all_ranks(mpi_tmp_path):
         assert abs(p[key] - s[key]) <= 1e-8 * abs(s[key]), (key, p[key], s[key])
 
 
+@pytest.mark.parametrize("blocked", [False, True], ids=["aij", "baij"])
 @pytest.mark.parametrize("scene", ["beam", "hertz"])
-def test_matrix_pattern_is_the_dms(scene):
-    """fem.create_matrix (our preallocation from the cells) against the DM's own matrix
-    (DMPlex's preallocation): the same assembled matrix, no allocation during assembly
-    (NEW_NONZERO_ALLOCATION_ERR would raise) and none allocated unused: the partition
-    interfaces' rows, which other ranks' cells reach, counted exactly; on the box beam and
-    the gmsh Hertz mesh."""
+def test_matrix_pattern_is_the_dms(scene, blocked):
+    """fem.create_matrix (our preallocation from the cells; AIJ, or BAIJ's block counts)
+    against the DM's own matrix (DMPlex's preallocation): the same assembled matrix, no
+    allocation during assembly (NEW_NONZERO_ALLOCATION_ERR would raise) and none allocated
+    unused: the partition interfaces' rows, which other ranks' cells reach, counted exactly;
+    on the box beam and the gmsh Hertz mesh."""
     from contact import fem
     from contact.problem import ContactProblem
     if scene == "beam":
@@ -148,7 +149,7 @@ def test_matrix_pattern_is_the_dms(scene):
     c = d.conn.astype(PETSc.IntType)
     Ke = fem.element_stiffness(d.coords[d.conn], lam, mu, "q1").reshape(c.shape[0], -1)
     mats = []
-    for A in (fem.create_matrix(d.dm, d.conn), d.dm.createMat()):
+    for A in (fem.create_matrix(d.dm, d.conn, blocked), d.dm.createMat()):
         A.setBlockSize(3) if A.getBlockSize() != 3 else None
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         A.setValuesBlockedLocalRCV(c, c, Ke, addv=PETSc.InsertMode.ADD_VALUES)
@@ -157,5 +158,8 @@ def test_matrix_pattern_is_the_dms(scene):
     ours, dms = (A.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM) for A in mats)
     assert ours["nz_used"] == dms["nz_used"] and ours["mallocs"] == 0
     assert ours["nz_allocated"] == ours["nz_used"], (ours, dms)
+    assert ("baij" in mats[0].getType()) == blocked
+    if blocked:
+        mats[0] = mats[0].convert(PETSc.Mat.Type.AIJ)
     mats[0].axpy(-1.0, mats[1], structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
     assert mats[0].norm() <= 1e-14 * mats[1].norm()     # (the order of the sums)
