@@ -100,7 +100,8 @@ def _pattern_matrix(A, rows, cols):
     D = PETSc.Mat().create(comm=A.getComm())
     D.setSizes(A.getSizes(), bsize=3)
     D.setType(PETSc.Mat.Type.AIJ)
-    D.setPreallocationNNZ((d, o))
+    # a rank with no row: scalars (petsc4py 3.18's empty nnz arrays hung its assembly)
+    D.setPreallocationNNZ((d, o) if d.size else (0, 0))
     if rows.size:
         D.setValuesRCV(rows.reshape(-1, 1), cols, np.zeros(cols.shape)[:, None, :], INSERT)
     D.assemble()
@@ -237,7 +238,7 @@ class CoulombNewton(Loop):
                     for k in range(3)]
         self.D = None
         if self.mg is not None and self.mg.rediscretised:
-            self.D = _pattern_matrix(self.A, rows, self.cols.reshape(3 * m, -1))
+            self.D = _pattern_matrix(self.A, rows, self.cols.reshape(3 * m, self.cols.shape[2]))
 
     def _padded(self, S, m):
         ia, ja, a = S.getValuesCSR()

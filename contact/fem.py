@@ -398,7 +398,7 @@ def _preallocated(dm, conn, mat_type):
     n_own = r1 - r0
     A.setSizes(((3 * n_own, 3 * n_global), (3 * n_own, 3 * n_global)), bsize=3)
     A.setType(mat_type or PETSc.Mat.Type.AIJ)
-    A.setPreallocationNNZ((d, o))
+    A.setPreallocationNNZ((d, o) if d.size else (0, 0))   # (a rank with no row: scalars)
     A.setLGMap(lg, lg)
     return A
 

@@ -19,14 +19,16 @@ Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
       nonzero against AIJ's 12, and at Nd = 40 on 2 ranks its MatMult takes 12.5 ms
       against 36 ms and its assembly 0.45 s against 1.9 s (runs/results/scaling.md).
   AIJ (-mat_type aij, q2, bbar and the mixed split, the paper's loops): PETSc's Galerkin
-      products at every level (-pc_mg_galerkin both). Smoothing: Chebyshev with point-block
-Jacobi (the nodes' 3 x 3 blocks; point Jacobi with GPU Vec types: level_pc_type); the
-coarsest level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
-(COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
+      products at every level (-pc_mg_galerkin both).
 
-Measured (runs/results/scaling.md): at Nd = 40 on 2 ranks a CG solve of the beam without
-contact takes 7 iterations and 6.6 s with it, 17 and 10.2 s with GAMG, and 45% less
-memory; the default solver 17.6 s and 2.5 kB per dof against GAMG's 22.4 s and 4.3.
+Smoothing: Chebyshev with point-block Jacobi (the nodes' 3 x 3 blocks; point Jacobi with
+GPU Vec types: level_pc_type); the coarsest level is factored (LU, redundant on every
+rank) up to COARSE_LU_MAX dofs (COARSE_LU_MAX_SPLIT in the mixed split's u-block), else
+solved by one GAMG cycle.
+
+Measured (runs/results/scaling.md section 8): at Nd = 40 on 2 ranks a CG solve of the beam
+without contact takes 7 iterations and 2.0 s with it, 17 and 9.5 s with GAMG, and half the
+memory; the default solver 4.9 s and 2.13 kB per dof against GAMG's 21.1 s and 4.24.
 The Galerkin products are formed "all at once" (GALERKIN): less memory, a little slower.
 A mesh of one level (gmsh, a mesh file, -mesh_refine 0, an odd Nd) gets GAMG, as does any
 solve given -<prefix>pc_type gamg: the options database has the last word.

@@ -47,14 +47,16 @@ def _owners(pr, what):
 
 
 @pytest.mark.parametrize("exact", [False, True], ids=["default", "exact_solves"])
-@pytest.mark.parametrize("nd,refine", [(1, None), (2, None), (6, "0"), (6, None)],
-                         ids=["nd1", "nd2", "nd6_whole", "nd6_refined"])
+@pytest.mark.parametrize("nd,refine", [(1, None), (2, None), (6, "0"), (6, None), (4, "2")],
+                         ids=["nd1", "nd2", "nd6_whole", "nd6_refined", "nd4_from_nd1"])
 def test_beam_default_solver(nd, refine, exact):
     """The paper's beam, default solver: Nd = 6 built whole and partitioned by METIS leaves
     ranks without a contact node at 4 ranks (this crashed with SIGFPE in the Newton
     Jacobian's row insertion); Nd = 1 has 3 cells, so beyond 3 ranks some ranks own no cell
-    at all; Nd = 6 refined from Nd = 3 in parallel. With exact linear solves the Newton
-    steps are the same in number."""
+    at all; Nd = 6 refined from Nd = 3 in parallel; Nd = 4 refined twice from Nd = 1 (3
+    cells): beyond 3 ranks the multigrid's BAIJ path (the Jacobian's change D) on ranks
+    with no contact node. With exact linear solves the Newton steps are the same in
+    number."""
     sc = paper_scene(nd=nd, mode="newton")
     opts = dict(EXACT if exact else {}, **({"mesh_refine": refine} if refine else {}))
     du, dp, par, ser = _compare(sc, opts)
@@ -62,8 +64,10 @@ def test_beam_default_solver(nd, refine, exact):
     assert par.converged and max(par.residuals.values()) < 1e-6, par.residuals
     if exact:
         assert par.iterations()["inner_total"] == ser.iterations()["inner_total"]
-    if MPI.COMM_WORLD.size >= 4 and refine == "0":
+    if MPI.COMM_WORLD.size >= 4 and refine in ("0", "2"):
         assert _owners(par, "contact") < MPI.COMM_WORLD.size      # the case it is about
+    if refine == "2":
+        assert par.disc.multigrid.rediscretised
 
 
 def test_beam_faithful_loops():
