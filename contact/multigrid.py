@@ -49,7 +49,7 @@ COARSE_LU_MAX_SPLIT = 30000
 
 #: defaults under the KSP's prefix (the command line wins), for PETSc's Galerkin products
 DEFAULTS = {"pc_mg_galerkin": "both"}
-#: the KSPs whose preconditioner is this multigrid (coulomb.py, fem.elasticity_ksp)
+#: the KSPs whose preconditioner is this multigrid (coulomb.py, elasticity_ksp)
 PREFIXES = ("newton_", "elastic_")
 #: SUBSET_NONZERO_PATTERN: the correction P^T D P lies in A_c's pattern
 SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
@@ -127,7 +127,8 @@ class Multigrid:
         c0 = free_c.getOwnershipRange()[0]
         clamped_c = (c0 + np.flatnonzero(free_c.getArray(readonly=True) > 0.5)).astype(
             PETSc.IntType)
-        fem.eliminate_dirichlet(A_c, m.duplicate(), clamped_c)
+        m.set(0.0)                               # (its b, left at 0)
+        fem.eliminate_dirichlet(A_c, m, clamped_c)
         m.destroy()
         free_c.set(1.0)
         free_c.setValues(clamped_c, np.zeros(clamped_c.size))
