@@ -69,7 +69,7 @@ def _rows_of(M, rows):
     c0, c1 = M.getOwnershipRangeColumn()
     isr = PETSc.IS().createBlock(3, nodes, comm=comm)
     isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=comm)
-    blocked = M.getType() in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ)
+    blocked = fem.is_blocked(M)
     if blocked:
         isc.setBlockSize(3)
     B = M.createSubMatrix(isr, isc)             # rows node by node
