@@ -8,10 +8,13 @@
                            "friction held", and the statics of a rigid block decide;
   lift-off                 a body held only by the foundation must not be pulled away;
   statics                  a friction-held body's tangential load T must not exceed F_max N
-                           at any load step (-statics_check false skips it).
+                           at any load step, and the load's resultant must pass through
+                           its flat contact face (it tips over otherwise) (-statics_check
+                           false skips both).
 Each raises SceneError with one line naming the problem.
 """
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import fem, options
@@ -64,6 +67,7 @@ def check_rigid_motion(disc):
         if tangential and disc.cs.has_friction:
             held = (Q, frame)
             check_friction_statics(disc, Q, unheld[1])
+            check_tipping(disc, *unheld[1:])
         else:
             why = ""
             if cpts is not None:
@@ -120,3 +124,74 @@ def check_friction_statics(disc, Q, Q0):
                 f"{fmax:g} x {N:.6g} = {fmax * N:.6g}: the body slides on the "
                 f"foundation (statics of a rigid block; no static equilibrium)")
 
+
+
+def check_tipping(disc, Q0, frame):
+    """Statics of a rigid block about the edges of its contact face, at every load step:
+    where nothing but the foundation holds the body's normal translation and its rotations
+    about the two tangential axes (span Q0), the foundation's normal forces (>= 0) must
+    balance the load's moment, so the load's centre of pressure c = -(n x M) / N (M: the
+    load's moment about a point of the face, N: its normal force) must lie in the convex
+    hull of the contact face; otherwise the body tips over (no static equilibrium; the
+    rigid rotation about the edge is free and the Newton iteration would follow it).
+    Checked for a flat face only (friction's moments vanish there); necessary, not
+    sufficient. SceneError names the step and the distance outside."""
+    if not options.get("statics_check"):
+        return
+    from scipy.spatial import ConvexHull, QhullError
+    mpi = disc.comm.tompi4py()
+    n = np.asarray(disc.normal, dtype=float)
+    pts = disc.cs.coordinates
+    cnt = mpi.allreduce(pts.shape[0])
+    if cnt < 3:
+        return
+    p0 = mpi.allreduce(pts.sum(axis=0)) / cnt
+    x0, h = frame
+    t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    # the motions that must be free: the normal translation, the tangential rotations
+    # about p0 (rigid_modes' coordinates: translation, rotation x h about x0)
+    need = [np.r_[n, 0.0, 0.0, 0.0]] + [np.r_[np.cross(t, x0 - p0), h * t] for t in (t1, t2)]
+    for v in need:
+        if np.linalg.norm(v - Q0 @ (Q0.T @ v)) > 1e-6 * np.linalg.norm(v):
+            return                           # a dirichlet part holds it
+    d = pts - p0
+    off = mpi.allreduce(np.abs(d @ n).max(initial=0.0), op=MPI.MAX)
+    if off > 1e-8 * h:
+        return                               # not a flat face on the foundation's plane
+    local = np.c_[d @ t1, d @ t2]
+    if local.shape[0] >= 3:
+        try:
+            local = local[ConvexHull(local).vertices]
+        except QhullError:
+            pass                             # collinear: all of them
+    face = np.vstack(mpi.allgather(local))
+    try:
+        hull = ConvexHull(face)
+    except QhullError:
+        return                               # a face of no area (a line): not checked
+    xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3) - p0
+    loads = []
+    for _, _, bg in disc.load_groups:
+        f = disc.xyz_rows(bg)
+        loads.append((mpi.allreduce(f.sum(axis=0)), mpi.allreduce(np.cross(xyz, f).sum(axis=0))))
+    steps = int(disc.scene.get("loading", {}).get("steps", 1))
+    for k in range(1, steps + 1):
+        t = k / steps
+        R = sum(ramp_factor(r, t) * F for (r, _, _), (F, _) in zip(disc.load_groups, loads))
+        M = sum(ramp_factor(r, t) * Mg for (r, _, _), (_, Mg) in zip(disc.load_groups, loads))
+        N = -float(R @ n)
+        if N <= 1e-14 * max(np.abs(R).max(), 1e-300):
+            continue                         # not pressed: the lift-off check's
+        c = -np.cross(n, M) / N
+        cp = np.array([c @ t1, c @ t2])
+        out = float(np.max(hull.equations[:, :2] @ cp + hull.equations[:, 2]))
+        if out > 1e-9 * h:
+            at = f" at load step {k} of {steps} (t = {t:g})" if steps > 1 else ""
+            xyz_c = p0 + cp[0] * t1 + cp[1] * t2
+            raise SceneError(
+                f"the load's resultant{at} meets the foundation at "
+                f"({', '.join(f'{v:.6g}' for v in xyz_c)}), {out:.3g} outside the contact "
+                f"face: the body tips over (statics of a rigid block; no static "
+                f"equilibrium)")

@@ -45,7 +45,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import fem, multigrid, options
-from .loop import CONVERGED_RTOL, CONVERGED_ZERO, Loop, ksp_reason_name
+from .loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
@@ -54,10 +54,11 @@ _EV_RES = PETSc.Log.Event("Newton residual")
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
-#: a stage that stalls with its lowest relative residual within this factor of the
-#: tolerance has met round-off (an ill-conditioned stiffness: nu -> 0.5, a large
-#: -newton_rtol request): no friction continuation, a named hint
-ROUNDOFF_FACTOR = 1e3
+#: a stage that stalls with its lowest residual within this factor of its round-off floor
+#: (`_floor`; below the floor it has converged: CONVERGED_ROUNDOFF) is not helped by a
+#: continuation: DIVERGED_STAGNATION at once, with a hint to raise -newton_rtol
+ROUNDOFF_FACTOR = 1e2
+EPS = float(np.finfo(PETSc.RealType).eps)
 INSERT = PETSc.InsertMode.INSERT_VALUES
 
 
@@ -127,8 +128,14 @@ class CoulombNewton(Loop):
             "(or fast)")
 
     def __init__(self, A, b, cs, clamped, diag_scale, mg=None, close_first=False,
-                 rho_diag=None, split=None):
+                 rho_diag=None, split=None, friction_held=False):
         super().__init__(A.getComm())
+        #: friction alone holds the body tangentially: friction continuation (less
+        #: friction) would let it slide, so a stalled stage goes to load continuation
+        self.friction_held = bool(friction_held)
+        self.path = None                 # the load path s -> b(s) (set_load), or None
+        self.load_substeps = []          # the load continuation's s, in order
+        self.floor = None                # relative round-off floor of a CONVERGED_ROUNDOFF
         self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
         self.close_first = bool(close_first)   # the glued first step closes every node
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
@@ -187,6 +194,9 @@ class CoulombNewton(Loop):
         if self.continuation_levels < 0:
             raise ValueError(f"-newton_continuation_levels must be >= 0, got "
                              f"{self.continuation_levels}")
+        if not 0.0 <= self.load_substep_min <= 0.5:
+            raise ValueError(f"-newton_load_substep_min must be in [0, 0.5], got "
+                             f"{self.load_substep_min}")
         if not 0.0 < self.linesearch_min <= 1.0:
             raise ValueError(f"-newton_linesearch_min must be in (0, 1], got "
                              f"{self.linesearch_min}")
@@ -201,9 +211,11 @@ class CoulombNewton(Loop):
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
 
-    def set_load(self, b, gap):
-        """The load and gap of the next solves (a load increment's)."""
-        self.b, self.gap = b, gap
+    def set_load(self, b, gap, path=None):
+        """The load and gap of the next solves (a load increment's); path(s, out): the load
+        at s in [0, 1] along the way to b (path(1) = b; x = 0 solves path(0)), for the load
+        continuation of a stalled iteration, or None."""
+        self.b, self.gap, self.path = b, gap, path
         self.bc = None                                # b at the contact dofs (_gather_load)
 
     def _gather_load(self):
@@ -467,6 +479,8 @@ class CoulombNewton(Loop):
         its own rows back at the end, also when the iteration fails."""
         self.begin(rtol)
         self._gather_load()
+        self._anorm = self.A.norm(PETSc.NormType.INFINITY)     # (before its rows change)
+        self._stall_hint = None
         if self.mg is not None:
             self.mg.set_interpolations(self.ksp)        # ksp.reset() drops them
         _EV_ITER.begin()
@@ -480,16 +494,18 @@ class CoulombNewton(Loop):
                 self.mg.release()
             _EV_ITER.end()
         hint = self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else \
-            self._stall_hint if reason == DIVERGED_STAGNATION else None
+            self._stall_hint if reason == DIVERGED_STAGNATION else \
+            (f"relative residual {self.residual:.1e} at its round-off floor "
+             f"{self.floor:.1e} (eps ||A||_inf ||x|| / ||r(0)||), above -newton_rtol "
+             f"{self._rtol:g}") if reason == CONVERGED_ROUNDOFF else None
         self.finish(it, reason, hint)
         return x
 
     def _iterate(self, x):
-        """The Newton iteration (see the module) with friction continuation when it stalls:
-        a stage that stalls (-newton_stall_its steps without halving the residual) starts
-        again from its start, first solving with friction F x S (S^2, ... if that stalls too;
-        -newton_continuation_factor S, -newton_continuation_levels), then at F from that
-        solution. Returns (iterations over all stages, reason)."""
+        """The Newton iteration (see the module) with its fall-backs when a stage stalls:
+        friction continuation (`_friction_stages`), where less friction can hold the body,
+        then load continuation (`_load_stages`) along the load path, where there is one.
+        Returns (iterations over all stages, reason)."""
         x0 = x.duplicate()
         x0.set(0.0)
         scale, _ = self._state(x0, self.r)               # ||r(0)||: the scale of the test
@@ -497,12 +513,37 @@ class CoulombNewton(Loop):
         self.residual = 0.0
         if scale == 0.0:
             return 0, CONVERGED_ZERO
+        can_friction = self.continuation_factor > 0.0 and not self.friction_held and \
+            self.comm.tompi4py().allreduce(bool((self.F > 0.0).any()), op=MPI.LOR)
+        it, reason = self._friction_stages(x, scale, 0, can_friction)
+        if reason == DIVERGED_STAGNATION and self._stall_hint is None and \
+                self.path is not None and self.load_substep_min > 0.0:
+            self._note(it, f"stalled ({self.stall_its} steps without halving the residual)"
+                           f"{self._continuation_text(can_friction)}: load continuation")
+            it, reason = self._load_stages(x, scale, it)
+        elif reason == DIVERGED_STAGNATION and self._stall_hint is None:
+            self._stall_hint = (f"{self.stall_its} steps did not halve the residual"
+                                + self._continuation_text(can_friction)
+                                + "; try -newton_watchdog 10, -load_steps N, or "
+                                  "-solver_mode fast")
+        return it, reason
+
+    def _continuation_text(self, can_friction):
+        if not can_friction:
+            return ""
+        return f", also with friction continuation down to F x {min(self.frictions):.3g}"
+
+    def _friction_stages(self, x, scale, it, can_continue):
+        """Newton from x at F, with friction continuation when a stage stalls (can_continue;
+        not for a body held by friction alone, whose statics the smaller friction breaks):
+        a stage that stalls (-newton_stall_its steps without halving the residual) starts
+        again from its start, first solving with friction F x S (S^2, ... if that stalls
+        too; -newton_continuation_factor S, -newton_continuation_levels), then at F from
+        that solution. Returns (it, reason); x is the last stage's end."""
         F, rtol = self.F, self._rtol
         # factors: the frictions F x factor still to reach (the last one first); base: the
         # factor whose solution x is at the stage's start (None: not a solution yet)
-        factors, base, start, it = [1.0], None, x.copy(), 0
-        can_continue = self.continuation_factor > 0.0 and \
-            self.comm.tompi4py().allreduce(bool((F > 0.0).any()), op=MPI.LOR)
+        factors, base, start = [1.0], None, x.copy()
         try:
             while True:
                 self.F = F * factors[-1]
@@ -510,18 +551,19 @@ class CoulombNewton(Loop):
                 self._rtol = rtol if len(factors) == 1 else max(rtol, 1e-8)
                 x.copy(start)
                 it, reason = self._stage(x, scale, it)
-                if reason in (CONVERGED_RTOL, CONVERGED_ZERO):
+                if reason in CONVERGED:
                     base = factors.pop()
                     if not factors:
                         return it, reason
                     self._note(it, f"continuation: friction F x {factors[-1]:.3g} from here")
                 elif reason == DIVERGED_STAGNATION and len(factors) == 1 and \
-                        self._stage_best <= ROUNDOFF_FACTOR * self._rtol:
+                        self._stage_best <= ROUNDOFF_FACTOR * self._stage_floor:
                     self._stall_hint = (
                         f"the residual stagnates at {self._stage_best:.1e}, within "
-                        f"{ROUNDOFF_FACTOR:g} x the tolerance {self._rtol:.0e}: round-off "
-                        f"for this problem's conditioning (e.g. nu -> 0.5); raise "
-                        f"-newton_rtol (e.g. to {10 * self._stage_best:.0e})")
+                        f"{ROUNDOFF_FACTOR:g} x its round-off floor "
+                        f"{self._stage_floor:.1e} (eps ||A||_inf ||x|| / ||r(0)||) but "
+                        f"above it: raise -newton_rtol (e.g. to "
+                        f"{10 * self._stage_best:.0e})")
                     return it, reason
                 elif reason == DIVERGED_STAGNATION and can_continue and \
                         len(factors) <= self.continuation_levels:
@@ -538,15 +580,64 @@ class CoulombNewton(Loop):
                                    f"starting again with friction F x {factors[-1]:.3g}")
                 else:
                     if reason == DIVERGED_STAGNATION:
-                        self._stall_hint = (
-                            f"{self.stall_its} steps did not halve the residual" + (
-                                f", also with friction continuation down to F x "
-                                f"{min(factors):.3g}" if len(factors) > 1 else "") +
-                            "; try -load_steps N, a finer mesh, or -solver_mode faithful")
+                        start.copy(x)                    # the stage's start again
                     return it, reason
         finally:
             self.F, self._rtol = F, rtol
             start.destroy()
+
+    def _load_stages(self, x, scale, it):
+        """Load continuation: the same problem (the same friction, gap and increment)
+        solved along its load path b(s) = path(s), s from 0 (the load x = 0 solves: the
+        previous increment's, or none) to 1 (b), in sub-steps ds: the first 1/2, halved
+        after a sub-step that stalls (down to -newton_load_substep_min, then
+        DIVERGED_STAGNATION), doubled after one that converges. The answer is the
+        problem's own: only the start of each sub-step changes. Returns (it, reason)."""
+        b, rtol = self.b, self._rtol
+        bs = b.duplicate()
+        done, xd = 0.0, x.duplicate()
+        xd.set(0.0)
+        ds = 0.5
+        try:
+            while True:
+                s = min(1.0, done + ds)
+                if s < 1.0:
+                    self.path(s, bs)
+                    self.b, self._rtol = bs, max(rtol, 1e-8)
+                else:
+                    self.b, self._rtol = b, rtol
+                self.bc = None
+                self._gather_load()
+                xd.copy(x)
+                self.load_substeps.append(s)
+                it, reason = self._stage(x, scale, it)
+                if reason in CONVERGED:
+                    if s == 1.0:
+                        return it, reason
+                    x.copy(xd)
+                    done, ds = s, min(2.0 * ds, 1.0 - s)
+                    self._note(it, f"load continuation: s = {s:.4g} solved, next "
+                                   f"s = {done + ds:.4g}")
+                elif reason == DIVERGED_STAGNATION and ds / 2 >= self.load_substep_min:
+                    ds /= 2.0
+                    self._note(it, f"load continuation: s = {s:.4g} stalled, next "
+                                   f"s = {done + ds:.4g}")
+                else:
+                    if reason == DIVERGED_STAGNATION:
+                        self._stall_hint = (
+                            f"{self.stall_its} steps did not halve the residual, also along "
+                            f"the load path in sub-steps down to {ds:.3g} of the load (solved "
+                            f"to s = {done:.4g})" + self._continuation_text(
+                                self.continuation_factor > 0.0 and not self.friction_held) +
+                            "; try -load_steps N (more increments), -newton_watchdog 10, "
+                            "or -solver_mode fast")
+                    return it, reason
+        finally:
+            self.b, self._rtol = b, rtol
+            self.bc = None
+            self._gather_load()
+            bs.destroy()
+            xd.destroy()
 
     def _stage(self, x, scale, it):
         """Newton from x at the friction self.F to self._rtol (relative to scale); it: the
@@ -619,12 +710,25 @@ class CoulombNewton(Loop):
             self.n_active = int(st["active"].sum())
             self.n_stick, self.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
             reason = self.test(it, nr, scale)
-            if reason is None and len(bests) > self.stall_its and \
+            floor = self._floor(x)
+            if reason is None and nr <= floor and bests[-1] > 0.5 * bests[-2]:
+                # no longer falling, within the rounding error of evaluating r itself
+                reason = CONVERGED_ROUNDOFF
+                self.floor = floor / scale
+            elif reason is None and len(bests) > self.stall_its and \
                     bests[-1] > 0.5 * bests[-1 - self.stall_its]:
                 reason = DIVERGED_STAGNATION
-                self._stage_best = bests[-1] / scale
+                self._stage_best, self._stage_floor = bests[-1] / scale, floor / scale
             self._monitor(it, self.residual, self._sets_text(t) if self.monitor else "")
         return it, reason
+
+    def _floor(self, x):
+        """The round-off floor of ||r(x)||: eps ||A||_inf ||x||_2 bounds the rounding error
+        of evaluating A x (||(|A| |x|)||_2 <= ||A||_inf ||x||_2, A symmetric), the part of
+        r that no iterate can remove; large where |A| |x| >> |A x| (nu -> 0.5: lambda
+        >> mu). Measured: the residual stagnates 2.5-12x below it (q2p1 and bbar at nu =
+        0.49999 - 0.499999, q2p1 at 0.3 with -newton_rtol 1e-16)."""
+        return EPS * self._anorm * x.norm()
 
     def _note(self, it, text):
         """A line of the monitor about the iteration itself (continuation)."""

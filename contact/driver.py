@@ -13,7 +13,7 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, mixed, multigrid, options, output, residuals as res
+from . import fem, multigrid, options, output, residuals as res
 from .apg import APG
 from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
@@ -76,16 +76,17 @@ class NewtonLoops:
 
     fp = uzawa = None
 
-    def __init__(self, disc, b, gap, contact_held=False):
+    def __init__(self, disc, b, gap, contact_held=False, friction_held=False, path=None):
         self.cs = disc.cs
         split = disc.pressure_split(options.get("newton_pressure_split", disc.scene),
                                     PETSc.Options().hasName("newton_pc_type"))
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
                                    disc.multigrid, close_first=contact_held,
-                                   rho_diag=disc.contact_diagonal, split=split)
-        with options.inserted({} if split is None else mixed.NEWTON_DEFAULTS):
+                                   rho_diag=disc.contact_diagonal, split=split,
+                                   friction_held=friction_held)
+        with options.inserted({} if split is None else split.newton_defaults()):
             self.inner.set_from_options(disc.scene)
-        self.inner.set_load(b, gap)
+        self.inner.set_load(b, gap, path)
 
     def solve(self, x, l, g0):
         """x in place (from its start), l <- the pressure R_n / w; returns g = l (F > 0)."""
@@ -143,13 +144,36 @@ def solve_linear(pr):
     ksp.destroy()
 
 
-def solve_contact(pr, b, gap, start=None, g0=None):
+class LoadPath:
+    """The load on the way to a solve's load b, for the Newton iteration's load
+    continuation: b(s) = base + sum_g f_g(t0 + s (t1 - t0)) b_g, s in [0, 1], the scene's
+    ramps f_g over the solve's span [t0, t1] of the load parameter (an increment's; a
+    static solve: [0, 1], base 0); base = -A u_(k-1) for an increment, so that du = 0
+    solves b(0) (the previous increment's equilibrium) and b(1) = b."""
+
+    def __init__(self, groups, t0=0.0, t1=1.0, base=None):
+        self.groups, self.t0, self.t1, self.base = groups, t0, t1, base
+
+    def __call__(self, s, out):
+        t = self.t0 + s * (self.t1 - self.t0)
+        if self.base is None:
+            out.set(0.0)
+        else:
+            self.base.copy(out)
+        for r, _, bg in self.groups:
+            out.axpy(ramp_factor(r, t), bg)
+        return out
+
+
+def solve_contact(pr, b, gap, start=None, g0=None, path=None):
     """One static contact solve for load b and gap: pr.x, pr.l, pr.g set; start: (l0, g0)
-    of a coarse-to-fine start; g0: the fixed point's start (the increment before)."""
+    of a coarse-to-fine start; g0: the fixed point's start (the increment before); path:
+    its LoadPath (the Newton iteration's load continuation; default: the static load's)."""
     pr.solver_mode = solver_mode(pr.scene)
     newton = pr.solver_mode == "newton"
     with options.inserted(SOLVER_MODES[pr.solver_mode]):
-        loops = NewtonLoops(pr.disc, b, gap, pr.contact_held) if newton else \
+        loops = NewtonLoops(pr.disc, b, gap, pr.contact_held, pr.friction_held is not None,
+                            path or LoadPath(pr.load_groups)) if newton else \
             Loops(pr.disc, b, gap)
         pr.loops = loops
         cs = pr.cs
@@ -188,16 +212,19 @@ def solve_incremental(pr, n):
     v.set(0.0)
     pr.step_log, g_start = [], None
     record = output.increment_recorder(pr)       # each increment's fields for the files
+    base = b.duplicate()
     for k in range(1, n + 1):
-        A.mult(v, b)
-        b.scale(-1.0)
+        A.mult(v, base)
+        base.scale(-1.0)                             # -A u_(k-1)
+        base.copy(b)
         factors = [ramp_factor(r, k / n) for r, _, _ in pr.load_groups]
         for f, (_, _, bg) in zip(factors, pr.load_groups):
             b.axpy(f, bg)                            # sum_g f_g(t_k) b_g - A u_(k-1)
         cs.normal_displacement(v, un)
         gap.waxpy(-1.0, un, cs.gap)                  # gap - u_nu,(k-1)
         pr.x.set(0.0)
-        solve_contact(pr, b, gap, g0=g_start)
+        solve_contact(pr, b, gap, g0=g_start, path=LoadPath(pr.load_groups, (k - 1) / n,
+                                                             k / n, base))
         check_solution(pr, b, gap)
         v.axpy(1.0, pr.x)
         if record is not None:
@@ -214,7 +241,7 @@ def solve_incremental(pr, n):
         if cs.has_friction:
             g_start = pr.l.copy()
     v.copy(pr.x)
-    for vec in (b, gap, un, v):
+    for vec in (b, base, gap, un, v):
         vec.destroy()
 
 

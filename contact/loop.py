@@ -42,6 +42,10 @@ class ResidualCheckError(RuntimeError):
 
 CONVERGED_RTOL = "CONVERGED_RTOL"
 CONVERGED_ZERO = "CONVERGED_ZERO"          # iterate and its change are exactly zero
+#: the residual stopped falling at its round-off floor (the rounding error of evaluating it,
+#: which the problem's conditioning sets), above -P_rtol: as good as the arithmetic allows
+CONVERGED_ROUNDOFF = "CONVERGED_ROUNDOFF"
+CONVERGED = (CONVERGED_RTOL, CONVERGED_ZERO, CONVERGED_ROUNDOFF)
 DIVERGED_MAX_IT = "DIVERGED_MAX_IT"
 DIVERGED_NANORINF = "DIVERGED_NANORINF"
 
@@ -129,11 +133,11 @@ class Loop:
             self.first_iterations = it
         self.calls += 1
         self.reason = reason
-        ok = reason in (CONVERGED_RTOL, CONVERGED_ZERO)
+        ok = reason in CONVERGED
         if self.converged_reason:
             word = "converged" if ok else "diverged"
             self.log(f"{' ' * self.indent}{self.title} {word} due to {reason} "
-                     f"iterations {it}")
+                     f"iterations {it}" + (f" ({hint})" if ok and hint else ""))
         if not ok:
             self.converged = False
             if reason == DIVERGED_NANORINF or self.error_if_not_converged:

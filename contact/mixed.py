@@ -57,11 +57,15 @@ from . import fem, multigrid, options
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
 LAMBDA_SPLIT = 4.0
 
-#: the Newton iteration's own defaults with a split (the command line wins): tighter
-#: Eisenstat-Walker forcing terms. With the loose 0.1 the friction states of the beam at
-#: nu = 0.4999, Nd = 8 cycle between stick and slip (79 steps and a continuation; 8 with
-#: exact solves, 9 with 0.01)
-NEWTON_DEFAULTS = {"newton_ew_max": "0.01"}
+#: the Newton iteration's largest Eisenstat-Walker forcing term with a split (the command
+#: line wins; `Split.newton_defaults`): min(EW_MAX, EW_LAMBDA mu / lambda). With the loose
+#: 0.1 the friction states of the beam at nu = 0.4999, Nd = 8 cycle between stick and slip
+#: (79 steps and a continuation; 8 with exact solves, 9 with 0.01). The mixed system's
+#: Krylov residual stands for the condensed one less well as lambda / mu grows: at
+#: nu = 0.4999999 (lambda / mu = 5e6) 0.01 gave DIVERGED_MAX_IT on the beam (q2p1, N = 4;
+#: bbar, Nd = 8), 1e-3 and 1e-4 converged (8-9 steps); at 0.499999 the bbar beam took 18
+#: steps, 922 Krylov iterations at 0.01, 9 and 509 at 1e-3
+EW_MAX, EW_LAMBDA = 0.01, 500.0
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
 DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
@@ -100,6 +104,7 @@ class Split:
         #: discretisation's, as for A), or GAMG on a mesh of one level
         self.mg = disc.multigrid
         mat = disc.scene["material"]
+        self.lam_mu = lam / mu
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
@@ -133,6 +138,17 @@ class Split:
         self.M = PETSc.Mat().createNest([[Ag, Gt], [G, self.C]], comm=comm)
         self.zp, self.p = self.C.createVecLeft(), self.C.createVecLeft()
         self.zp.set(0.0)
+
+    def newton_defaults(self):
+        """The Newton iteration's own option defaults with this split (the command line
+        wins): its forcing terms' cap, tighter as lambda / mu grows (EW_LAMBDA), and the
+        full Schur factorisation (upper's second u-block cycle too): Krylov iterations
+        upper -> full 745 -> 528 (Hertz, bbar, nd = 3, nu = 0.4999), 509 -> 376 (beam,
+        bbar, Nd = 8, 0.499999), 221 -> 119 (Hertz, q2p1, nd = 2, 0.4999), 114 -> 87 (beam,
+        q2p1, N = 4, 0.4999), in about the same time; Hertz, bbar, nd = 3, nu = 0.499999:
+        converged in 6 steps where upper's second solve failed (1000 iterations)."""
+        return {"newton_ew_max": f"{min(EW_MAX, EW_LAMBDA / self.lam_mu):.3g}",
+                "newton_pc_fieldsplit_schur_fact_type": "full"}
 
     def condensed(self):
         """A_g + Gq^T Cq^-1 R Gq = A_g + kappa Gq^T Gq as a new Mat (tests: it is A)."""

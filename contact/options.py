@@ -169,17 +169,23 @@ REGISTRY = [
            "condensed stiffness", "auto|off"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
-    Option("newton_watchdog", 3, int, "full Newton steps taken also when the residual "
+    Option("newton_watchdog", 6, int, "full Newton steps taken also when the residual "
            "rises, up to N in a row; then back to the last point of decrease and a "
            "backtracking line search from there (0: a monotone line search every step)",
            "N"),
     Option("newton_stall_its", 8, int, "N steps that do not halve the lowest residual "
-           "stop the iteration as stalled (then friction continuation, if on)", "N"),
+           "stop the iteration as stalled (then friction continuation, then load "
+           "continuation)", "N"),
     Option("newton_continuation_factor", 0.3, float, "a stalled iteration starts again from "
            "its start, first solving with friction F x S (then S^2, ... if that stalls too), "
            "then at F from there; 0: off", "S"),
     Option("newton_continuation_levels", 4, int, "at most N continuation levels (down to "
-           "F x S^N) before DIVERGED_STAGNATION", "N"),
+           "F x S^N) before the load continuation", "N"),
+    Option("newton_load_substep_min", 1.0 / 64, float, "a stalled iteration that friction "
+           "continuation cannot help (a body held by friction alone) or did not help solves "
+           "the same problem along its load path: from the load its start solves (the "
+           "previous increment's) to the full load in sub-steps, halved when one stalls, "
+           "down to D (then DIVERGED_STAGNATION); 0: off", "D"),
 ]
 BY_NAME = {o.name: o for o in REGISTRY}
 #: the scene options with a name of their own (-nd, -friction, ...) and their scene paths

@@ -252,6 +252,71 @@ def cases_gaps():
             for v, o in GAPS.items() for n in (2, 4, 6, 8) for f in ("0.5", "1", "10", "100")]
 
 
+#: the friction-held family's grid: Nd, load increments, shear q as a fraction of F p
+HELD_ND = (2, 4, 8, 12, 16, 24, 32)
+HELD_STEPS = (1, 2, 4, 8, 16)
+HELD_SHEAR = ("0.5", "0.8", "0.95")
+#: a block 1 x 1 x H (H = 2) pressed by p = 2 and sheared on its top by q: it tips over its
+#: front edge when q H > N a / 2 (q > 0.5), before it slides (q > F p = 1): the heel lifts
+TALL = ["-scene_mesh_upper_2", "2", "-scene_mesh_cells_per_nd_2", "2",
+        "-scene_boundary_press_plane_1", "2", "-scene_boundary_shear_plane_1", "2"]
+Q_TIP = 0.5
+
+
+def shear(q):
+    return ["-scene_boundary_shear_traction_0", q]
+
+
+def steps(n):
+    return ["-load_steps", str(n)]
+
+
+def cases_held():
+    """The default solver on bodies held by friction (and the foundation) alone: the block
+    of runs/scenes/block_shear.yaml pressed by p = 2, then sheared by q = 50, 80 and 95 %
+    of F p on the Nd x increments grid (at 80-95 % the heel lifts: the resultant passes
+    near the front edge); the same block across a gap (block_gap.yaml, contact-held); a
+    tall block sheared to 50-95 % of its tipping limit, and past it (must fail)."""
+    blk, gap = (["-scene", os.path.join(SCENES, f)] for f in ("block_shear.yaml",
+                                                              "block_gap.yaml"))
+    out = [Case(f"held-nd{n}-s{k}-q{q}", f"friction-held block, q = {q} F p, Nd = {n}, "
+                f"{k} increments", blk + nd(n) + steps(k) + shear(q) + NEWTON)
+           for n in HELD_ND for k in HELD_STEPS for q in HELD_SHEAR]
+    out += [Case(f"held-gap-nd{n}-s{k}-q{q}", f"block on a gap 1e-4, q = {q} F p, Nd = {n}, "
+                 f"{k} increments", gap + nd(n) + steps(k) + shear(q) + NEWTON)
+            for n in (2, 8, 16, 32) for k in (1, 4, 16) for q in ("0.8", "0.95")]
+    out += [Case(f"held-tall-nd{n}-s{k}-q{f}", f"block 1 x 1 x 2, q = {f} of its tipping "
+                 f"limit, Nd = {n}, {k} increments",
+                 blk + TALL + nd(n) + steps(k) + shear(num(float(f) * Q_TIP)) + NEWTON)
+            for n in (4, 8, 16) for k in (1, 4, 16) for f in ("0.5", "0.8", "0.95")]
+    out += [Case(f"held-tall-nd{n}-tips", "block 1 x 1 x 2 sheared to 1.1 x its tipping "
+                 f"limit: must fail (it tips over), Nd = {n}",
+                 blk + TALL + nd(n) + steps(4) + shear(num(1.1 * Q_TIP)) + NEWTON)
+            for n in (4, 8)]
+    return out
+
+
+#: the rubber-like family: nu up to 0.4999999 with each locking-free element
+NU_RUBBER = ("0.49", "0.499", "0.4999", "0.49999", "0.499999", "0.4999999")
+
+
+def cases_rubber():
+    """The default solver on nearly incompressible bodies: the paper's beam (q2p1 at N = 4,
+    bbar at Nd = 8) and Hertz (q2p1 at nd = 2, bbar at nd = 3), nu from 0.49 to
+    0.4999999: converged to -newton_rtol or to the residual's round-off floor
+    (CONVERGED_ROUNDOFF), the certified residuals within -check_tol."""
+    hz = ["-scene", os.path.join(SCENES, "hertz.yaml")]
+    out = []
+    for el, n_beam, n_hertz in (("q2p1", 4, 2), ("bbar", 8, 3)):
+        for nu in NU_RUBBER:
+            e = ["-element", el, "-poisson", nu]
+            out += [Case(f"rubber-beam-{el}-{nu}", f"beam, {el}, nu = {nu}",
+                         nd(n_beam) + e + NEWTON),
+                    Case(f"rubber-hertz-{el}-{nu}", f"Hertz, {el}, nu = {nu}",
+                         hz + nd(n_hertz) + e + NEWTON)]
+    return out
+
+
 # -- running -------------------------------------------------------------------------------
 #: options of the loops only: dropped (with their values) when a row becomes a newton row
 LOOP_ONLY = {"-uzawa_r", "-solver_mode", "-fp_warm_start", "-ssn_ksp_type", "-ssn_pc_type",

@@ -199,3 +199,57 @@ def test_block_shear_scene_from_the_command_line(mpi_tmp_path):
         assert [e["part_factors"]["shear"] for e in js["steps"]] == pytest.approx(
             [0.0, 1 / 3, 2 / 3, 1.0])
         assert js["normal_force"] == pytest.approx(2.0, rel=1e-6)
+
+
+def _shipped(nd, steps, q=None, tall=False):
+    """runs/scenes/block_shear.yaml at Nd, with `steps` increments, shear q; tall: the
+    block 1 x 1 x 2 (loads on its top, z = 2)."""
+    import os
+
+    from conftest import ROOT
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "block_shear.yaml"))
+    sc["mesh"]["nd"] = nd
+    sc["loading"]["steps"] = steps
+    if q is not None:
+        sc["boundary"]["shear"]["traction"][0] = q
+    if tall:
+        sc["mesh"]["upper"][2] = 2.0
+        sc["mesh"]["cells_per_nd"][2] = 2
+        for part in ("press", "shear"):
+            sc["boundary"][part]["plane"][1] = 2.0
+    return scenes.validate(sc)
+
+
+def test_load_continuation_solves_the_same_increment(comm):
+    """The shipped scene at Nd = 8 in 2 increments (q = 0.8 F p: the heel lifts, 31 of 81
+    nodes stay closed): with the watchdog of 3 steps its second increment stalls (friction
+    continuation cannot help a body held by friction alone: it was DIVERGED_STAGNATION),
+    the load continuation solves it (s = 1/2, then 1), and the answer is that of another
+    path (the default watchdog, no continuation) and a solution's (certified residuals)."""
+    from contact import options
+    with options.inserted({"newton_watchdog": "3"}):
+        pr = solve(_shipped(8, 2), comm)
+    assert pr.converged and pr.inner.load_substeps == [0.5, 1.0]
+    assert pr.inner.continuations == 0                 # no friction continuation
+    ref = solve(_shipped(8, 2), comm)
+    assert ref.converged and ref.inner.load_substeps == []
+    assert rel_err(gather(pr)[1], gather(ref)[1]) < 1e-8
+    assert max(pr.residuals.values()) < 1e-10
+
+
+@pytest.mark.parametrize("q,ok", [(0.475, True), (0.55, False)])
+def test_tipping(comm, q, ok):
+    """A block 1 x 1 x 2 pressed by p = 2 and sheared on its top by q: statics of a rigid
+    block puts the load's centre of pressure at x = 1/2 + q H / p (H = 2), inside the face
+    (x <= 1) iff q <= 1/2, before it slides (q <= F p = 1). At 0.95 of that limit the heel
+    lifts and the default converges; past it the run refuses, naming the point."""
+    sc = _shipped(4, 4, q, tall=True)
+    if ok:
+        pr = solve(sc, comm)
+        assert pr.converged and max(pr.residuals.values()) < 1e-9
+        assert abs(pr.normal_force() - P) < 1e-8 * P
+    else:
+        x = 0.5 + q * 2.0 / P
+        with pytest.raises(SceneError, match=rf"at load step 4 of 4 .* meets the foundation "
+                                             rf"at \({x:g}, 0.5, 0\).*tips over"):
+            solve(sc, comm)
