@@ -5,6 +5,7 @@ import petsc4py
 from petsc4py import PETSc
 
 from . import residuals as res, stress
+from .loop import CONVERGED_ROUNDOFF
 
 
 def _tolerances(problem):
@@ -57,6 +58,13 @@ def summary(problem, time_total):
         "max_displacement": res.max_displacement(mpicomm, problem.displacement()),
         "residuals": problem.residuals or res.residuals(problem),
         "converged": bool(problem.converged),
+        # why the (last) solve's innermost loop stopped, and for CONVERGED_ROUNDOFF its
+        # relative round-off floor eps ||A||_inf ||x|| / ||r(0)|| (coulomb.py); each load
+        # increment's in `steps`
+        "reason": problem.inner.reason if problem.inner is not None else None,
+        "residual_floor": floor_of(problem.inner),
+        # the load continuation's sub-steps s of the (last) solve ([]: none was needed)
+        "load_substeps": list(getattr(problem.inner, "load_substeps", [])),
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
         "peak_rss_mib": mpicomm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                                           / 1024.0),
@@ -64,6 +72,14 @@ def summary(problem, time_total):
         # areas), contact_result_steps (per load increment), von_mises_max (stress.py)
         **stress.summary(problem),
     }
+
+
+def floor_of(inner):
+    """The relative round-off floor a Newton solve converged at (CONVERGED_ROUNDOFF), or
+    None."""
+    if inner is None or inner.reason != CONVERGED_ROUNDOFF:
+        return None
+    return float(inner.floor)
 
 
 def header(s):
@@ -77,6 +93,19 @@ def table_line(s):
     it = s["iterations"]
     return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {it['inner_first']:>9} "
             f"{it['uzawa_mean']:>11.1f} {it['fixed_point']:>4} {s['time_s']['total']:>9.2f}")
+
+
+def _roundoff_note(s):
+    """' (CONVERGED_ROUNDOFF ...)' where a solve (an increment's) stopped at its floor."""
+    floors = [e.get("residual_floor") for e in s.get("steps") or []] or \
+        [s.get("residual_floor")]
+    floors = [f for f in floors if f is not None]
+    if not floors:
+        return ""
+    return (f" ({CONVERGED_ROUNDOFF}: the residual stopped falling at its round-off floor, "
+            f"relative {max(floors):.1e}, above the tolerance"
+            + (f", in {len(floors)} of {len(s['steps'])} increments" if s.get("steps") else "")
+            + ")")
 
 
 def print_summary(comm, s, outdir=None):
@@ -94,7 +123,7 @@ def print_summary(comm, s, outdir=None):
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
-             f"{s['converged']}",
+             f"{s['converged']}" + _roundoff_note(s),
              f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}"]
     if s["skipped"]:
         lines.append("skipped: " + "; ".join(s["skipped"]))

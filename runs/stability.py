@@ -18,6 +18,9 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   fvar      F varying over the contact face (F = 0 on part of it), malformed F
   fgrid     the default solver on the beam, F from 0 to 100 x Nd from 2 to 20
   gaps      bodies held by the foundation alone across uniform, varying, tilted gaps
+  held      friction-held blocks: Nd 2-32 x 1-16 increments x shear 50-95 % of F p, a block
+            on a gap, a tall block near and past its tipping limit
+  rubber    nu from 0.49 to 0.4999999, q2p1 and bbar, the beam and Hertz
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
 stdout.txt, stderr.txt and run.json (options, outcome, error, wall time); a row whose
 run.json records the same options is reused, failed or not (--force reruns). Rows that
@@ -795,6 +798,57 @@ def findings_fvar(R):
         "unknown name) gives one-line named errors, no traceback.")
 
 
+def _continued(R, i):
+    """The number of solves (increments) of row i that needed the load continuation."""
+    s = R.summary(i)
+    steps = s.get("steps") or [s]
+    return sum(bool(e.get("load_substeps")) for e in steps)
+
+
+def findings_held(R):
+    grid = [i for i in R.results if re.match(r"held-nd\d+-s", i)]
+    ok = [i for i in grid if R.ok(i)]
+    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
+    cont = [i for i in ok if _continued(R, i)]
+    others = [i for i in R.results if i not in grid and not i.endswith("-tips")]
+    ok_o = [i for i in others if R.ok(i)]
+    tips = [i for i in R.results if i.endswith("-tips")]
+    return (
+        f"The friction-held block converges on {len(ok)} of {len(grid)} rows of the Nd x "
+        f"increments x shear grid (Nd {HELD_ND[0]}-{HELD_ND[-1]}, {HELD_STEPS[0]}-"
+        f"{HELD_STEPS[-1]} increments, q = {', '.join(HELD_SHEAR)} F p; Newton steps over "
+        f"all increments {span(its)}; max residual {R.max_res(ok)}); {len(cont)} of them "
+        f"needed the load continuation in some increment ({', '.join(cont) or 'none'}). "
+        f"The block on a gap and the tall block below its tipping limit: {len(ok_o)} of "
+        f"{len(others)} converge (max residual {R.max_res(ok_o)}). Past the tipping limit "
+        f"the run refuses: {R.failures('held-tall-') or 'none'}"
+        + ("." if all(not R.ok(i) for i in tips) else "; **a tipping row converged**.")
+        + " Before (commit a9c36e3: watchdog 3, friction continuation only) the shipped "
+        "scene (q = 0.8 F p, 4 increments) failed at every Nd from 12 up (DIVERGED_STAGNATION, "
+        "friction continuation down to F x 0.0081), and in 2 increments from Nd = 8.")
+
+
+def findings_rubber(R):
+    ok = [i for i in R.results if R.ok(i)]
+    ro = [i for i in ok if R.summary(i).get("reason") == "CONVERGED_ROUNDOFF"]
+    floors = [R.summary(i)["residual_floor"] for i in ro]
+    bad = [i for i in R.results if not R.ok(i)]
+    return (
+        f"{len(ok)} of {len(R.results)} rows converge (Newton steps "
+        f"{span([R.summary(i)['iterations']['inner_total'] for i in ok])}; max certified "
+        f"residual {R.max_res(ok)}); {len(ro)} of them at the residual's round-off floor "
+        f"(CONVERGED_ROUNDOFF, relative floor "
+        f"{f'{min(floors):.1e}-{max(floors):.1e}' if floors else '–'}), the rest "
+        f"to -newton_rtol 1e-11. Failed: {R.failures('rubber-') or 'none'}"
+        + (f" ({', '.join(bad)}: B-bar's Q1-P0 pair is not inf-sup stable, and at lambda / "
+           "mu >= 5e5 the fieldsplit's diagonal Schur approximation leaves GMRES short of "
+           "the forcing term in 1000 iterations; `-newton_pressure_split off "
+           "-newton_ksp_type preonly -newton_pc_type lu` converges on these small meshes)"
+           if bad else "") + ". Before (commit a9c36e3) every row past nu = 0.4999 ended "
+        "in DIVERGED_STAGNATION at round-off (exit 1, no files), and nu = 0.4999999 in "
+        "DIVERGED_MAX_IT (forcing terms too loose for lambda / mu = 5e6).")
+
+
 GROUPS = {
     "r": ("Uzawa parameter r",
           "The paper's beam (F = 0.3) at Nd = 3 in faithful mode (480 dofs) and Nd = 4 in "
@@ -841,6 +895,17 @@ GROUPS = {
              "increments, q = 0.8 p) on a uniform gap 1e-4, gaps 1e-4 (1 + x) and "
              "1e-4 (1 + x y), and a tilted foundation (normal (0.05, 0.03, 1)), F = 0.5 to "
              "100, Nd = 2 to 8.", cases_gaps, findings_gaps),
+    "held": ("Bodies held by friction and the foundation alone",
+             "runs/scenes/block_shear.yaml (a unit block, no clamp, pressed by p = 2 then "
+             "sheared by q) in the default mode on the grid Nd = 2, 4, 8, 12, 16, 24, 32 x "
+             "1, 2, 4, 8, 16 increments x q = 0.5, 0.8, 0.95 F p; the block on a gap "
+             "(block_gap.yaml); a tall block (1 x 1 x 2, its top loaded) at 0.5, 0.8, 0.95 "
+             "of its tipping limit q H = N a / 2, and past it (must fail: it tips over).",
+             cases_held, findings_held),
+    "rubber": ("Nearly incompressible bodies (nu -> 0.5)",
+               "The paper's beam (q2p1, N = 4; bbar, Nd = 8) and Hertz (q2p1, nd = 2; bbar, "
+               "nd = 3) in the default mode, nu = 0.49 to 0.4999999.",
+               cases_rubber, findings_rubber),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar, findings_fvar),
@@ -850,7 +915,8 @@ GROUPS = {
 SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "load-press-300", "thin-plate-nd1", "elem-1x3x3-nd2", "fvar-half", "fvar-negative",
          "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
-         "fgrid-nd3-F10", "gap-varying-xy-nd2-F10")
+         "fgrid-nd3-F10", "gap-varying-xy-nd2-F10", "held-nd8-s2-q0.8", "held-tall-nd4-tips",
+         "rubber-beam-bbar-0.4999999")
 
 
 def main(argv=None):
