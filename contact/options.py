@@ -87,7 +87,8 @@ REGISTRY = [
            "check), else the run fails: a vanishing step (huge r) also stops the loops", "T",
            ("solver", "check_tol")),
     Option("statics_check", True, bool, "refuse a friction-held body whose tangential load "
-           "exceeds F N (statics of a rigid block)", "BOOL"),
+           "exceeds F N, or whose load's resultant meets the foundation outside its flat "
+           "contact face (statics of a rigid block: it slides, it tips over)", "BOOL"),
     Option("solver_mode", "newton", str, "newton: one semismooth Newton iteration on the whole "
            "problem (default); faithful: the paper's loops; fast: the loops with the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",
