@@ -142,6 +142,14 @@ CASES = [
         _del("boundary", "clamped")(sc),
         _set([30.0, 0.0, 20.0], "boundary", "end", "traction")(sc)))],
      "exceeds the friction limit"),
+    ("tips-over", lambda t: ["-scene", os.path.join(ROOT, "runs", "scenes", "block_shear.yaml"),
+                             "-scene_mesh_upper_2", "2", "-scene_mesh_cells_per_nd_2", "2",
+                             "-scene_boundary_press_plane_1", "2",
+                             "-scene_boundary_shear_plane_1", "2",
+                             "-scene_boundary_shear_traction_0", "0.55"],
+     "the body tips over"),
+    ("load-substep-min", lambda t: ["-newton_load_substep_min", "0.7"],
+     "-newton_load_substep_min must be in [0, 0.5]"),
     ("rigid-motion-free", lambda t: ["-friction", "0", "-scene", scene_file(
         t, _set(["z"], "boundary", "clamped", "components"))], "rigid-body motion free"),
     ("missing-part", lambda t: ["-scene", scene_file(
@@ -184,6 +192,7 @@ def test_bad_input_one_line(tmp_path, case, args, msg):
 
 
 TWO_RANKS = ("unknown-option", "young-negative", "friction-expression-inf", "rigid-motion-free",
+             "tips-over",
              "missing-part", "mesh-inverted", "mesh-not-a-mesh", "output-unwritable",
              "solution-check", "mat-type-baij")
 

@@ -76,6 +76,7 @@ CASES = {
     "newton_stall_its": ("5", {}),
     "newton_continuation_factor": ("0.5", {}),
     "newton_continuation_levels": ("2", {}),
+    "newton_load_substep_min": ("0.125", {}),
 }
 #: the options every loop reads under its prefix, and where each loop runs
 LOOP_CASE = {"fp_": FAITHFUL, "uzawa_": FAITHFUL, "apg_": FAITHFUL, "ssn_": FAST,
