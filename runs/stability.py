@@ -416,16 +416,17 @@ def result(case, run):
             "when": os.path.getmtime(os.path.join(run.dir, "run.json")), "cached": run.cached}
 
 
-def row_result(case, out, timeout, run, force):
+def row_result(case, out, timeout, run, force, ranks=1):
     """Run the row (run: True), or only look it up in the cache; None if neither. A row
     directory without run.json (from before the harness) does not say its options: rerun."""
     d, opts = os.path.join(out, case.id), case.opts
     known = os.path.exists(os.path.join(d, "run.json"))
     if run:
-        r = harness.run_case(d, opts, timeout=timeout, force=force or not known, check=False,
-                             reuse_failures=True)
+        r = harness.run_case(d, opts, ranks, timeout=timeout, force=force or not known,
+                             check=False, reuse_failures=True)
     else:
-        r = harness.cached(d, opts, timeout=timeout, reuse_failures=True) if known else None
+        r = harness.cached(d, opts, ranks, timeout=timeout, reuse_failures=True) \
+            if known else None
     return None if r is None else result(case, r)
 
 
@@ -927,7 +928,9 @@ def main(argv=None):
     ap.add_argument("--timeout", type=float, default=120.0, help="per-run limit, s")
     ap.add_argument("--smoke", action="store_true",
                     help="only the rows of SMOKE (tests); needs --out-dir, records there")
-    ap.add_argument("--out-dir", default=None, help="row directories (default runs/out/stability)")
+    ap.add_argument("--out-dir", default=None,
+                    help="row directories (default runs/out/stability, with -npN for N ranks)")
+    ap.add_argument("--ranks", type=int, default=1, help="MPI ranks of every row (mpirun)")
     ap.add_argument("--record", default=None,
                     help="markdown (default runs/results/stability.md; --smoke: "
                          "OUT_DIR/stability.md)")
@@ -937,7 +940,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.smoke and args.out_dir is None:
         ap.error("--smoke needs --out-dir (it must not write into runs/)")
-    out = args.out_dir or OUT
+    out = args.out_dir or (OUT if args.ranks == 1 else f"{OUT}-np{args.ranks}")
     record = args.record or (os.path.join(out, "stability.md") if args.smoke else RECORD)
     keep = (lambda c: c.id in SMOKE) if args.smoke else (lambda c: True)
     groups = {name: (title, intro, [c for c in make() if keep(c)], findings)
@@ -955,7 +958,7 @@ def main(argv=None):
                                  "error": f"skipped: the solver does not know `{c.requires}`"}
                 continue
             results[c.id] = row_result(c, out, args.timeout, run_group,
-                                       args.force and run_group)
+                                       args.force and run_group, args.ranks)
     elapsed = time.perf_counter() - t0
 
     counts = {}
@@ -969,7 +972,7 @@ def main(argv=None):
                         for t in (ran[0], ran[-1])) if ran else "–"
     states = sorted({r["solver"] for r in done})
     lines = ["# Stability suite (make stability)", ""]
-    lines += harness.provenance_lines(1, make="stability", argv=argv)
+    lines += harness.provenance_lines(args.ranks, make="stability", argv=argv)
     lines += [
         f"- The rows ran between {when}; per-run timeout {args.timeout:g} s.",
         f"- Solver (commit of the rows' runs): {', '.join(states) or '–'}.",
