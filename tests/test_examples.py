@@ -193,7 +193,7 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Findings.**") == 11                    # every group's findings render
+    assert md.count("**Findings.**") == 13                    # every group's findings render
     row = {c[0]: c for c in (table_rows(md, i)[0] for i in
                              ("F-fast-nd4-0.3", "load-press-300", "fvar-negative",
                               "fvar-syntax", "F-fast-relax-0.6"))}
