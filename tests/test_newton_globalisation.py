@@ -230,3 +230,43 @@ def test_load_steps_option_is_an_integer():
     finally:
         opts.delValue("load_steps")
     assert sc["loading"]["steps"] == 4 and isinstance(sc["loading"]["steps"], int)
+
+
+def test_load_path_starts_at_the_previous_equilibrium(monkeypatch):
+    """driver.LoadPath of each increment, checked as each solve starts: b(1) is the
+    increment's load b, and du = 0 solves b(0) (the previous increment's equilibrium: the
+    Newton residual there is at the level the previous solve converged to), while it is
+    far from solving b."""
+    from contact import driver
+    found = []
+
+    def residual_at_zero(n, b):
+        zero = b.duplicate()
+        zero.set(0.0)
+        n.b, n.bc = b, None
+        n._gather_load()
+        out = n._state(zero, n.r)[0]
+        zero.destroy()
+        return out
+
+    class Spy(driver.NewtonLoops):
+        def solve(self, x, l, g0):
+            n = self.inner
+            b = n.b
+            b0, b1 = b.duplicate(), b.duplicate()
+            n.path(1.0, b1)
+            b1.axpy(-1.0, b)
+            n.path(0.0, b0)
+            found.append((b1.norm() / b.norm(), residual_at_zero(n, b0),
+                          residual_at_zero(n, b)))
+            n.b, n.bc = b, None
+            for v in (b0, b1):
+                v.destroy()
+            return super().solve(x, l, g0)
+
+    monkeypatch.setattr(driver, "NewtonLoops", Spy)
+    pr = solve(_block(nd=4))
+    assert pr.converged and len(found) == 4
+    for k, (d1, start, full) in enumerate(found):
+        assert d1 <= 1e-14
+        assert full > 0 and start <= (1e-9 if k else 0.0) * full, (k, start, full)
