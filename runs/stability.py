@@ -824,9 +824,9 @@ def findings_held(R):
         f"{len(others)} converge (max residual {R.max_res(ok_o)}). Past the tipping limit "
         f"the run refuses: {R.failures('held-tall-') or 'none'}"
         + ("." if all(not R.ok(i) for i in tips) else "; **a tipping row converged**.")
-        + " Before (commit a9c36e3: watchdog 3, friction continuation only; the same rows "
-        "run there on 2026-11-27) 29 of the 105 grid rows failed, DIVERGED_STAGNATION after "
-        "friction continuation down to F x 0.0081: rows of 2 or more increments at q = 0.8 "
+        + " Before (commit a9c36e3: watchdog 3, friction continuation only; the same rows, "
+        "1 rank, run there on 2026-11-27) 29 of the 105 grid rows failed, "
+        "DIVERGED_STAGNATION after friction continuation down to F x 0.0081: rows of 2 or more increments at q = 0.8 "
         "or 0.95 F p from Nd = 8 up (at Nd = 32 every one of them; none at 0.5 F p or in "
         "one increment), "
         "and 14 of the 51 gap and tall-block rows; the tall block past its limit ended in "
@@ -853,7 +853,7 @@ def findings_rubber(R):
            "-newton_ksp_max_it 2000` converges (5 steps, 3402 Krylov iterations) and so does "
            "a direct solve, `-newton_ksp_type preonly -newton_pc_type lu`; q2p1, the "
            "automatic element there, converges)" if bad else "")
-        + ". Before (commit a9c36e3; the same rows run there on 2026-11-27) 9 of the 24 "
+        + ". Before (commit a9c36e3; the same rows, 1 rank, run there on 2026-11-27) 9 of the 24 "
         "rows failed: the q2p1 beam from nu = 0.4999 and the bbar beam from 0.49999 with "
         "DIVERGED_STAGNATION at round-off (exit 1, no files; at 0.4999999 after 72 steps, and "
         "DIVERGED_MAX_IT: forcing terms too loose for lambda / mu = 5e6), Hertz with bbar at "
