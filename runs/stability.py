@@ -828,7 +828,8 @@ def findings_held(R):
         "1 rank, run there on 2026-11-27) 29 of the 105 grid rows failed, "
         "DIVERGED_STAGNATION after friction continuation down to F x 0.0081: rows of 2 "
         "or more increments at q = 0.8 or 0.95 F p from Nd = 8 up (at Nd = 32 every one of "
-        "them; none at 0.5 F p or in one increment), and 14 of the 51 gap and tall-block rows; the tall block past its limit ended in "
+        "them; none at 0.5 F p or in one increment), and 14 of the 51 gap and tall-block "
+        "rows; the tall block past its limit ended in "
         "DIVERGED_STAGNATION or DIVERGED_BREAKDOWN, and with the new fall-backs but without "
         "the tipping check it 'converged' at Nd = 8 with max |u| = 5e9.")
 
