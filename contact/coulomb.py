@@ -54,6 +54,10 @@ _EV_RES = PETSc.Log.Event("Newton residual")
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
+#: a stage's ends that the fall-backs (friction, then load continuation) take over: a stall,
+#: or a Jacobian the Krylov solver cannot solve (reached on the way, e.g. through the
+#: watchdog's full steps: a thin plate, runs/stability.py)
+STALLED = (DIVERGED_STAGNATION, DIVERGED_LINEAR_SOLVE)
 #: a stage that stalls with its lowest residual within this factor of its round-off floor
 #: (`_floor`; below the floor it has converged: CONVERGED_ROUNDOFF) is not helped by a
 #: continuation: DIVERGED_STAGNATION at once, with a hint to raise -newton_rtol
@@ -516,7 +520,7 @@ class CoulombNewton(Loop):
         can_friction = self.continuation_factor > 0.0 and not self.friction_held and \
             self.comm.tompi4py().allreduce(bool((self.F > 0.0).any()), op=MPI.LOR)
         it, reason = self._friction_stages(x, scale, 0, can_friction)
-        if reason == DIVERGED_STAGNATION and self._stall_hint is None and \
+        if reason in STALLED and self._stall_hint is None and \
                 self.path is not None and self.load_substep_min > 0.0:
             self._note(it, f"stalled ({self.stall_its} steps without halving the residual)"
                            f"{self._continuation_text(can_friction)}: load continuation")
@@ -565,7 +569,7 @@ class CoulombNewton(Loop):
                         f"above it: raise -newton_rtol (e.g. to "
                         f"{10 * self._stage_best:.0e})")
                     return it, reason
-                elif reason == DIVERGED_STAGNATION and can_continue and \
+                elif reason in STALLED and can_continue and \
                         len(factors) <= self.continuation_levels:
                     # from the stage's start: a smaller friction, or, when that start is
                     # the solution at F x base, halfway (geometrically) from base, so that
@@ -579,7 +583,7 @@ class CoulombNewton(Loop):
                                    f"residual): "
                                    f"starting again with friction F x {factors[-1]:.3g}")
                 else:
-                    if reason == DIVERGED_STAGNATION:
+                    if reason in STALLED:
                         start.copy(x)                    # the stage's start again
                     return it, reason
         finally:
@@ -618,7 +622,7 @@ class CoulombNewton(Loop):
                     done, ds = s, min(2.0 * ds, 1.0 - s)
                     self._note(it, f"load continuation: s = {s:.4g} solved, next "
                                    f"s = {done + ds:.4g}")
-                elif reason == DIVERGED_STAGNATION and ds / 2 >= self.load_substep_min:
+                elif reason in STALLED and ds / 2 >= self.load_substep_min:
                     ds /= 2.0
                     self._note(it, f"load continuation: s = {s:.4g} stalled, next "
                                    f"s = {done + ds:.4g}")
@@ -685,6 +689,13 @@ class CoulombNewton(Loop):
                     eta = min(max(eta, 0.5 * self._rtol * scale / nr), self.ew_max)
                 K, rhs = self._system(st, glued and it == first)
                 if not self._linear_solve(K, rhs, eta):
+                    if kw > 0:
+                        # a full step without decrease led where the Jacobian cannot be
+                        # solved: the watchdog bites now (back to the watch point and
+                        # backtrack along its step, which needs no new solve)
+                        kw = self.watchdog
+                        it -= 1
+                        continue
                     reason = DIVERGED_LINEAR_SOLVE
                     break
                 if save_dir:

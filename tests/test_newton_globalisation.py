@@ -27,7 +27,7 @@ import os
 
 import numpy as np
 import pytest
-from conftest import ROOT, fields, paper_scene, rel_err, solve
+from conftest import ROOT, fields, paper_scene, rel_err, skip_in_parallel, solve
 from petsc4py import PETSc
 
 from contact import options, scene as scenes
@@ -270,3 +270,19 @@ def test_load_path_starts_at_the_previous_equilibrium(monkeypatch):
     for k, (d1, start, full) in enumerate(found):
         assert d1 <= 1e-14
         assert full > 0 and start <= (1e-9 if k else 0.0) * full, (k, start, full)
+
+
+@skip_in_parallel
+def test_unsolvable_full_step_makes_the_watchdog_bite():
+    """A plate 3 x 1 x 0.03 of 9 x 3 x 3 cells pressed on its face (runs/stability.py's
+    thin-plate-flat): a full step without decrease leads to a Jacobian GMRES cannot solve
+    (1000 iterations); that was DIVERGED_LINEAR_SOLVE at step 5. It is now a bad step: the
+    iteration goes back to the watch point and backtracks, and converges (9 steps). Not on
+    2 ranks: there the same scene, partitioned, still ends in DIVERGED_STAGNATION after
+    both continuations (a plate of aspect 1:100; the closing note of issue 35)."""
+    sc = paper_scene(nd=3, mode="newton")
+    sc["mesh"]["upper"][2] = 0.03
+    sc["boundary"]["top"]["plane"][1] = 0.03
+    pr = solve(scenes.validate(sc))
+    assert pr.converged and pr.inner.line_search_cuts >= 1
+    assert max(pr.residuals.values()) < 1e-9
