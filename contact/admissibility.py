@@ -109,21 +109,35 @@ def check_friction_statics(disc, Q, Q0):
     D = fem.free_translations(Q)             # (3, m): orthonormal free directions
     if D.shape[1] == 0:
         return
-    mpi = disc.comm.tompi4py()
-    res = [mpi.allreduce(disc.xyz_rows(bg).sum(axis=0)) for _, _, bg in disc.load_groups]
     fmax = disc.cs.F.max()[1]
-    steps = int(disc.scene.get("loading", {}).get("steps", 1))
-    for k in range(1, steps + 1):
-        t = k / steps
-        R = sum(ramp_factor(r, t) * rg for (r, _, _), rg in zip(disc.load_groups, res))
+    for at, R, _ in step_loads(disc):
         N, T = -float(R @ n), float(np.linalg.norm(D.T @ R))
         if T > fmax * max(N, 0.0) * (1.0 + 1e-9) + 1e-14 * np.abs(R).max():
-            at = f" at load step {k} of {steps} (t = {t:g})" if steps > 1 else ""
             raise SceneError(
                 f"the tangential load T = {T:.6g}{at} exceeds the friction limit F N = "
                 f"{fmax:g} x {N:.6g} = {fmax * N:.6g}: the body slides on the "
                 f"foundation (statics of a rigid block; no static equilibrium)")
 
+
+def step_loads(disc, p0=None):
+    """The load's resultant force R and (with p0) moment M about p0 at every load step
+    (the ramps of the load groups at t = k / steps): yields (at, R, M), `at` the step's
+    words for a message ("" for a static load)."""
+    mpi = disc.comm.tompi4py()
+    xyz = None if p0 is None else \
+        disc.coordinates.getArray(readonly=True).reshape(-1, 3) - p0
+    sums = []
+    for _, _, bg in disc.load_groups:
+        f = disc.xyz_rows(bg)
+        sums.append((mpi.allreduce(f.sum(axis=0)),
+                     None if xyz is None else mpi.allreduce(np.cross(xyz, f).sum(axis=0))))
+    steps = int(disc.scene.get("loading", {}).get("steps", 1))
+    for k in range(1, steps + 1):
+        t = k / steps
+        w = [ramp_factor(r, t) for r, _, _ in disc.load_groups]
+        R = sum(wi * F for wi, (F, _) in zip(w, sums))
+        M = None if xyz is None else sum(wi * Mg for wi, (_, Mg) in zip(w, sums))
+        yield (f" at load step {k} of {steps} (t = {t:g})" if steps > 1 else ""), R, M
 
 
 def check_tipping(disc, Q0, frame):
@@ -171,16 +185,7 @@ def check_tipping(disc, Q0, frame):
         hull = ConvexHull(face)
     except QhullError:
         return                               # a face of no area (a line): not checked
-    xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3) - p0
-    loads = []
-    for _, _, bg in disc.load_groups:
-        f = disc.xyz_rows(bg)
-        loads.append((mpi.allreduce(f.sum(axis=0)), mpi.allreduce(np.cross(xyz, f).sum(axis=0))))
-    steps = int(disc.scene.get("loading", {}).get("steps", 1))
-    for k in range(1, steps + 1):
-        t = k / steps
-        R = sum(ramp_factor(r, t) * F for (r, _, _), (F, _) in zip(disc.load_groups, loads))
-        M = sum(ramp_factor(r, t) * Mg for (r, _, _), (_, Mg) in zip(disc.load_groups, loads))
+    for at, R, M in step_loads(disc, p0):
         N = -float(R @ n)
         if N <= 1e-14 * max(np.abs(R).max(), 1e-300):
             continue                         # not pressed: the lift-off check's
@@ -188,7 +193,6 @@ def check_tipping(disc, Q0, frame):
         cp = np.array([c @ t1, c @ t2])
         out = float(np.max(hull.equations[:, :2] @ cp + hull.equations[:, 2]))
         if out > 1e-9 * h:
-            at = f" at load step {k} of {steps} (t = {t:g})" if steps > 1 else ""
             xyz_c = p0 + cp[0] * t1 + cp[1] * t2
             raise SceneError(
                 f"the load's resultant{at} meets the foundation at "

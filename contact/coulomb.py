@@ -63,6 +63,8 @@ STALLED = (DIVERGED_STAGNATION, DIVERGED_LINEAR_SOLVE)
 #: continuation: DIVERGED_STAGNATION at once, with a hint to raise -newton_rtol
 ROUNDOFF_FACTOR = 1e2
 EPS = float(np.finfo(PETSc.RealType).eps)
+#: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
+CONTINUATION_RTOL = 1e-8
 INSERT = PETSc.InsertMode.INSERT_VALUES
 
 
@@ -139,7 +141,9 @@ class CoulombNewton(Loop):
         self.friction_held = bool(friction_held)
         self.path = None                 # the load path s -> b(s) (set_load), or None
         self.load_substeps = []          # the load continuation's s, in order
-        self.floor = None                # relative round-off floor of a CONVERGED_ROUNDOFF
+        #: the relative round-off floor the last solve converged at (CONVERGED_ROUNDOFF),
+        #: else None
+        self.floor = None
         self.mg = mg                     # multigrid.Multigrid on the mesh hierarchy, or None
         self.close_first = bool(close_first)   # the glued first step closes every node
         self.A, self.b, self.cs, self.gap = A, b, cs, cs.gap
@@ -497,6 +501,8 @@ class CoulombNewton(Loop):
             if self.mg is not None:
                 self.mg.release()
             _EV_ITER.end()
+        if reason != CONVERGED_ROUNDOFF:
+            self.floor = None            # (a continuation's stage may have set it)
         hint = self._ksp_hint() if reason == DIVERGED_LINEAR_SOLVE else \
             self._stall_hint if reason == DIVERGED_STAGNATION else \
             (f"relative residual {self.residual:.1e} at its round-off floor "
@@ -524,7 +530,7 @@ class CoulombNewton(Loop):
                 self.path is not None and self.load_substep_min > 0.0:
             self._note(it, f"stalled ({self.stall_its} steps without halving the residual)"
                            f"{self._continuation_text(can_friction)}: load continuation")
-            it, reason = self._load_stages(x, scale, it)
+            it, reason = self._load_stages(x, scale, it, can_friction)
         elif reason == DIVERGED_STAGNATION and self._stall_hint is None:
             self._stall_hint = (f"{self.stall_its} steps did not halve the residual"
                                 + self._continuation_text(can_friction)
@@ -552,7 +558,7 @@ class CoulombNewton(Loop):
             while True:
                 self.F = F * factors[-1]
                 self.frictions.append(factors[-1])
-                self._rtol = rtol if len(factors) == 1 else max(rtol, 1e-8)
+                self._rtol = rtol if len(factors) == 1 else max(rtol, CONTINUATION_RTOL)
                 x.copy(start)
                 it, reason = self._stage(x, scale, it)
                 if reason in CONVERGED:
@@ -590,13 +596,14 @@ class CoulombNewton(Loop):
             self.F, self._rtol = F, rtol
             start.destroy()
 
-    def _load_stages(self, x, scale, it):
+    def _load_stages(self, x, scale, it, can_friction):
         """Load continuation: the same problem (the same friction, gap and increment)
         solved along its load path b(s) = path(s), s from 0 (the load x = 0 solves: the
         previous increment's, or none) to 1 (b), in sub-steps ds: the first 1/2, halved
         after a sub-step that stalls (down to -newton_load_substep_min, then
         DIVERGED_STAGNATION), doubled after one that converges. The answer is the
-        problem's own: only the start of each sub-step changes. Returns (it, reason)."""
+        problem's own: only the start of each sub-step changes. can_friction: whether
+        friction continuation was tried (the hint). Returns (it, reason)."""
         b, rtol = self.b, self._rtol
         bs = b.duplicate()
         done, xd = 0.0, x.duplicate()
@@ -607,7 +614,7 @@ class CoulombNewton(Loop):
                 s = min(1.0, done + ds)
                 if s < 1.0:
                     self.path(s, bs)
-                    self.b, self._rtol = bs, max(rtol, 1e-8)
+                    self.b, self._rtol = bs, max(rtol, CONTINUATION_RTOL)
                 else:
                     self.b, self._rtol = b, rtol
                 self.bc = None
@@ -631,10 +638,9 @@ class CoulombNewton(Loop):
                         self._stall_hint = (
                             f"{self.stall_its} steps did not halve the residual, also along "
                             f"the load path in sub-steps down to {ds:.3g} of the load (solved "
-                            f"to s = {done:.4g})" + self._continuation_text(
-                                self.continuation_factor > 0.0 and not self.friction_held) +
-                            "; try -load_steps N (more increments), -newton_watchdog 10, "
-                            "or -solver_mode fast")
+                            f"to s = {done:.4g})" + self._continuation_text(can_friction)
+                            + "; try -load_steps N (more increments), -newton_watchdog 10, "
+                              "or -solver_mode fast")
                     return it, reason
         finally:
             self.b, self._rtol = b, rtol

@@ -13,7 +13,7 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, multigrid, options, output, report, residuals as res
+from . import fem, multigrid, options, output, residuals as res
 from .apg import APG
 from .coulomb import CoulombNewton
 from .discretisation import DEFAULT_RAMP
@@ -238,7 +238,7 @@ def solve_incremental(pr, n):
                             "normal_force": pr.normal_force(),
                             "iterations": pr.iterations(single=True),
                             "reason": pr.inner.reason,
-                            "residual_floor": report.floor_of(pr.inner),
+                            "residual_floor": getattr(pr.inner, "floor", None),
                             "load_substeps": list(getattr(pr.inner, "load_substeps", [])),
                             "residuals": dict(pr.residuals)})
         if cs.has_friction:

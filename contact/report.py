@@ -62,7 +62,7 @@ def summary(problem, time_total):
         # relative round-off floor eps ||A||_inf ||x|| / ||r(0)|| (coulomb.py); each load
         # increment's in `steps`
         "reason": problem.inner.reason if problem.inner is not None else None,
-        "residual_floor": floor_of(problem.inner),
+        "residual_floor": getattr(problem.inner, "floor", None),
         # the load continuation's sub-steps s of the (last) solve ([]: none was needed)
         "load_substeps": list(getattr(problem.inner, "load_substeps", [])),
         # peak resident memory of each rank so far (Linux ru_maxrss is in KiB)
@@ -72,14 +72,6 @@ def summary(problem, time_total):
         # areas), contact_result_steps (per load increment), von_mises_max (stress.py)
         **stress.summary(problem),
     }
-
-
-def floor_of(inner):
-    """The relative round-off floor a Newton solve converged at (CONVERGED_ROUNDOFF), or
-    None."""
-    if inner is None or inner.reason != CONVERGED_ROUNDOFF:
-        return None
-    return float(inner.floor)
 
 
 def header(s):
