@@ -66,8 +66,8 @@ REGISTRY = [
     Option("scene", None, str, "scene YAML (default runs/paper_beam.yaml)", "FILE"),
     Option("nd", None, int, "mesh: cells_per_nd * N hexahedra (paper: 3N x N x N)", "N",
            ("mesh", "nd")),
-    Option("friction", None, str, "Coulomb coefficient: a number or a NumPy expression in "
-           "x, y, z, e.g. \"where(x<1.5,0.3,0)\"", "F", ("contact", "friction")),
+    Option("friction", None, str, "Coulomb coefficient: a number or an expression in "
+           "x, y, z (README: Scenes), e.g. \"where(x<1.5,0.3,0)\"", "F", ("contact", "friction")),
     Option("element", "auto", str, "hexahedron: q1 (the paper's trilinear), bbar (B-bar: "
            "no volumetric locking as nu -> 0.5), q2 (27-node triquadratic: -nd counts its "
            "elements, its nodes are the vertices of the mesh refined once), q2p1 (q2 with a "

@@ -14,7 +14,7 @@ import re
 import yaml
 from petsc4py import PETSc
 
-from . import options
+from . import expression, options
 from .fem import ELEMENTS
 
 #: named options -> path in the scene (declared in the option registry, options.py)
@@ -117,10 +117,14 @@ def _convert(old, text, name, path=()):
 def from_options(opts=None):
     """The scene of this run: -scene FILE (default the paper's beam), then overrides."""
     opts = opts or PETSc.Options()
-    scene = load(opts.getString("scene", DEFAULT_SCENE))
-    scene = copy.deepcopy(scene)
+    path_ = opts.getString("scene", DEFAULT_SCENE)
+    scene = copy.deepcopy(load(path_))
+    #: where each expression came from, for the error messages
+    sources = {p: f"{'.'.join(p)} in scene file {path_}" for p in EXPRESSIONS}
     for opt, path in NAMED.items():
         if opts.hasName(opt):
+            if tuple(path) in sources:
+                sources[tuple(path)] = f"option -{opt}"
             try:
                 old = _get(scene, path)
             except (KeyError, IndexError, TypeError):   # not in the scene: the option's type
@@ -129,8 +133,10 @@ def from_options(opts=None):
     for path, old in list(options.scalars(scene)):
         name = "scene_" + "_".join(path)
         if opts.hasName(name):
+            if tuple(path) in sources:
+                sources[tuple(path)] = f"option -{name}"
             _set(scene, path, _convert(old, opts.getString(name), name, path))
-    validate(scene)
+    validate(scene, sources)
     return scene
 
 
@@ -161,8 +167,9 @@ def _numbers(value, n, what):
     return value
 
 
-def validate(scene):
-    """Check the keys and values a run needs; raise SceneError naming the first bad one."""
+def validate(scene, sources=None):
+    """Check the keys and values a run needs; raise SceneError naming the first bad one.
+    sources: where the expressions came from (path -> words), for the messages."""
     _check_keys(scene, None, "the scene")
     for section in ("mesh", "material", "contact", "solver", "loading"):
         if section in scene:
@@ -195,7 +202,25 @@ def validate(scene):
         raise SceneError(f"element must be auto, {', '.join(ELEMENTS)}, got {el!r}")
     _material(scene["material"])
     _rest(scene)
+    for path in EXPRESSIONS:
+        _expression(scene, path, (sources or {}).get(path, ".".join(path)))
     return scene
+
+
+def _expression(scene, path, source):
+    """An expression of the scene (EXPRESSIONS) is checked against the language of
+    contact/expression.py before any mesh is built (it is only evaluated at the nodes)."""
+    try:
+        text = _get(scene, path)
+    except (KeyError, TypeError):
+        return
+    if not isinstance(text, str):
+        return
+    try:
+        expression.parse(text)
+    except expression.ExpressionError as e:
+        shown = text if len(text) <= 60 else text[:57] + "..."
+        raise SceneError(f"{source}: the expression {shown!r} {e}") from None
 
 
 def _box(mesh):

@@ -34,7 +34,8 @@ solver next to it):
   (listed components, zero displacement only), ``symmetry`` (zero normal component),
   ``traction``, ``contact`` (the plane z = 0 only, rigid foundation z <= 0, normal +z,
   no gap). Contact nodes: the nodes of the contact plane whose z dof is not clamped.
-* Friction F: a number or a NumPy expression in x, y, z evaluated at the contact nodes.
+* Friction F: a number or an expression in x, y, z (contact/expression.py) at the contact
+  nodes.
 
 Anything else (mesh files, rotations, nonzero prescribed displacements, load steps or
 ramps, other foundations, gaps) raises NotImplementedError.
@@ -49,6 +50,7 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
+from .. import expression      # the scene language only (parsing is not what is checked here)
 from .socp import solve_coulomb, solve_tresca
 
 __all__ = ["grid", "grid_q2", "shape_q1", "shape_lagrange", "strain_matrix",
@@ -321,10 +323,7 @@ def friction_at(spec, xyz):
     if isinstance(spec, (int, float)) and not isinstance(spec, bool):
         F = np.full(xyz.shape[0], float(spec))
     else:
-        ns = {k: getattr(np, k) for k in dir(np) if not k.startswith("_")}
-        ns.update(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2])
-        F = np.broadcast_to(np.asarray(eval(str(spec), {"__builtins__": {}}, ns), float),
-                            (xyz.shape[0],)).copy()
+        F = expression.values(str(spec), xyz)          # the scene language, never eval
     if not np.all(np.isfinite(F)) or np.any(F < 0):
         raise ValueError(f"friction {spec!r} must be finite and >= 0 on the contact face")
     return F
