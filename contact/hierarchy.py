@@ -30,7 +30,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import mesh, options
+from . import mesh, options, petsc_compat
 from .mesh import HEX_FACES, HEX_REF, MeshError
 
 #: the automatic k keeps at least this many coarse cells per rank
@@ -214,7 +214,7 @@ def uninterpolated(dm):
     with dm's coordinates and point SF (DMPlexUninterpolate leaves the coordinates out)."""
     u = dm.clone()
     u.uninterpolate()                                      # in place: u is the new DM
-    u.getCoordinateDM().setSection(dm.getCoordinateSection())
+    petsc_compat.set_local_section(u.getCoordinateDM(), dm.getCoordinateSection())
     u.setCoordinatesLocal(dm.getCoordinatesLocal())
     _copy_cell_labels(dm, u)
     return u

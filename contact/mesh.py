@@ -13,6 +13,8 @@ import ctypes
 import numpy as np
 from petsc4py import PETSc
 
+from . import petsc_compat
+
 #: reference coordinates (xi, eta, zeta) of the 8 vertices, in cone order
 HEX_REF = np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, -1], [1, -1, -1],
                     [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
@@ -233,13 +235,17 @@ def boundary_faces(conn, coords, axis, value, tol=1e-9):
 
 
 def displacement_section(dm):
-    """Section with 3 dofs on every vertex (a copy of the coordinate section's layout)."""
+    """Section with 3 dofs on every vertex (a copy of the coordinate section's layout: its
+    chart is the vertices (PETSc 3.18) or every point with dofs on the vertices only (3.26
+    after a refinement); either way the vertices' 3 coordinates lie contiguously, in order)."""
     sec = dm.getCoordinateSection().clone()
     vs, ve = dm.getDepthStratum(0)
-    if sec.getChart() != (vs, ve) or sec.getStorageSize() != 3 * (ve - vs):
+    c0, c1 = sec.getChart()
+    if not (c0 <= vs and ve <= c1 and sec.getStorageSize() == 3 * (ve - vs)) or (
+            ve > vs and (sec.getDof(vs), sec.getOffset(vs), sec.getDof(ve - 1),
+                         sec.getOffset(ve - 1)) != (3, 0, 3, 3 * (ve - vs - 1))):
         raise MeshError("unexpected coordinate layout: coordinates must be 3 per vertex")
-    setter = getattr(dm, "setLocalSection", None) or dm.setSection
-    setter(sec)
+    petsc_compat.set_local_section(dm, sec)
     return sec
 
 

@@ -52,7 +52,7 @@ in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth o
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, multigrid, options
+from . import fem, multigrid, options, petsc_compat
 
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
 LAMBDA_SPLIT = 4.0
@@ -179,7 +179,7 @@ class Split:
         with options.inserted({prefix + k: v for k, v in {**defaults, **kw}.items()}):
             ksp.setFromOptions()
             if not opts.hasName(prefix + "pc_fieldsplit_schur_precondition"):
-                pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, self.Sp)
+                pc.setFieldSplitSchurPreType(petsc_compat.SCHUR_PRE.USER, self.Sp)
             pc.setUp()
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]

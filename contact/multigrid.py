@@ -197,7 +197,7 @@ class Multigrid:
             ops = {self.level: K, self.level - 1: self.coarse}
             for j in range(self.level - 1, 0, -1):          # P_j: level j - 1 -> level j
                 prev = self._products.get(j - 1)
-                ops[j - 1] = ops[j].PtAP(self.interpolation(j), result=prev)
+                ops[j - 1] = ops[j].ptap(self.interpolation(j), result=prev)
                 self._products[j - 1] = ops[j - 1]
         for j in range(self.n_levels - 1, -1, -1):
             pc.getMGSmoother(j).setOperators(ops[j])
@@ -210,7 +210,7 @@ class Multigrid:
             self._added = False
         if D is None:
             return
-        self._C = D.PtAP(self.interpolation(self.level), result=self._C)
+        self._C = D.ptap(self.interpolation(self.level), result=self._C)
         self.coarse.axpy(1.0, self._C, SUBSET)
         self._added = True
 

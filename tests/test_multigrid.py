@@ -148,13 +148,13 @@ def test_rediscretised_coarse_operator_is_the_galerkin_product(tilted):
     assert mpi.allreduce(int(st["slip"].sum())) > 0 and mpi.allreduce(int(st["stick"].sum()))
     try:
         K, _ = n._system(st)
-        G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).PtAP(P)
+        G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
         mg._correct(n.D)
         assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12
     finally:
         n._restore()
         mg.release()
-    G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).PtAP(P)
+    G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
     assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12
 
 
