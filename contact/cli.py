@@ -1,12 +1,14 @@
 """Command line: python -m contact [options]; -help lists them (contact/options.py)."""
 import os
+import re
 import signal
 import sys
 import time
 
 from petsc4py import PETSc
 
-from . import options, output, report, scene as scenes
+from . import options, output, report, resources, scene as scenes
+from .discretisation import element_of
 from .loop import ConvergenceError, ResidualCheckError
 from .mesh import MeshError
 from .problem import ContactProblem
@@ -39,9 +41,12 @@ def run(comm=None):
     outdir = opts.getString("output_dir",
                             os.path.join("runs", "out", f"{sc['name']}-nd{sc['mesh']['nd']}"))
     formats = output.parse_formats(options.get("output_formats"))
+    skipped = _size_check(comm, sc)
     if formats:
         output.prepare_dir(comm.tompi4py(), outdir)
-    problem = ContactProblem(sc, comm).solve()
+    problem = ContactProblem(sc, comm)
+    problem.skipped += skipped
+    problem.solve()
     if len(formats) < len(output.FORMATS):
         problem.skipped.append("output files " + ", ".join(
             f for f in output.FORMATS if f not in formats) + " (-output_formats)")
@@ -53,6 +58,25 @@ def run(comm=None):
     report.print_summary(comm, s, outdir if formats else None)
     options.warn_unused(comm)
     return s
+
+
+def _size_check(comm, sc):
+    """The size check before any mesh (contact/resources.py); what it skipped."""
+    if not options.get("memory_check"):
+        return ["size check (-memory_check 0)"]
+    el = element_of(sc)
+    n = resources.dofs(sc, el)
+    if n is None:
+        return ["size check (a mesh file: its size is the file's)"]
+    resources.check(comm, n, el, options.get("solver_mode", sc))
+    return []
+
+
+def _out_of_memory(e):
+    """A PETSc error that is an allocation failure (PETSC_ERR_MEM, or PetscMalloc failing
+    inside another routine)."""
+    return isinstance(e, PETSc.Error) and (getattr(e, "ierr", 0) == 55 or
+                                           "PetscMalloc" in str(e))
 
 
 def _interrupt(signum, frame):
@@ -75,6 +99,14 @@ def main(argv=None):
         if debug:
             raise
         _error(comm, str(e))          # leave together: mpirun kills the rest at the first exit
+        return 1
+    except (MemoryError, PETSc.Error) as e:
+        if debug or not (isinstance(e, MemoryError) or _out_of_memory(e)):
+            raise
+        first = re.search(r"\] (\w+)\(", str(e)) if isinstance(e, PETSc.Error) else None
+        where = first.group(1) if first else "Python"
+        _error(comm, f"out of memory (an allocation failed in {where}): the run needs more "
+                     "memory than this rank has; more ranks or nodes, or a smaller -nd")
         return 1
     except KeyboardInterrupt as e:
         if debug:

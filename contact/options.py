@@ -89,6 +89,9 @@ REGISTRY = [
     Option("statics_check", True, bool, "refuse a friction-held body whose tangential load "
            "exceeds F N, or whose load's resultant meets the foundation outside its flat "
            "contact face (statics of a rigid block: it slides, it tips over)", "BOOL"),
+    Option("memory_check", True, bool, "before the mesh: estimate the peak memory per rank "
+           "(runs/results/bench-memory.md) and stop, saying how many ranks would fit, where "
+           "it exceeds what the ranks can have; 0: go on anyway", "BOOL"),
     Option("solver_mode", "newton", str, "newton: one semismooth Newton iteration on the whole "
            "problem (default); faithful: the paper's loops; fast: the loops with the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",

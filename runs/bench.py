@@ -25,6 +25,10 @@ Parts (--part, default all):
           the same nodes (the hierarchy's finest interpolation is the exact embedding of the
           coarse q1 space), then q1 levels), the same with GAMG, and the no-contact solves
           (CG + multigrid; CG + GAMG, q2's own LSE): set-up and solve in LSE of the q2 mesh.
+  memory  the memory model of the size check (contact/resources.py): peak memory of each
+          element and mode at two sizes on 1 rank (slope: bytes per dof; intercept: the
+          floor), and the default on 2 ranks (the parallel growth); recorded in
+          runs/results/bench-memory.md.
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
 free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
@@ -308,10 +312,48 @@ def part_quadratic(args, lines):
     lines.append("")
 
 
+#: part memory: (element, mode, Nd small, Nd large), the paper's beam; q2 at half the Nd has
+#: the same nodes
+MEMORY_CASES = [("q1", "newton", 20, 40), ("bbar", "newton", 20, 40), ("q2", "newton", 10, 20),
+                ("q2p1", "newton", 10, 20), ("q1", "fast", 20, 40), ("q1", "faithful", 6, 12)]
+
+
+def part_memory(args, lines):
+    """Peak memory per rank = floor + bytes per dof x dofs / ranks: the two sizes of each
+    element and mode give the slope (bytes per dof) and the floor, on 1 rank; the default on
+    2 ranks gives the parallel overhead. contact/resources.py's MODEL is this table."""
+    lines += ["## Memory model: peak per rank = floor + bytes per dof x dofs / ranks", "",
+              "Two sizes of the paper's beam per element and mode, 1 rank (default outputs); "
+              "bytes per dof = the slope between them, floor = the intercept. "
+              "contact/resources.py's size check uses these values.", "",
+              "| element | mode | Nd | dofs | peak, MiB | bytes per dof | floor, MiB |",
+              "|---|---|---|---|---|---|---|"]
+    for el, mode, n0, n1 in args.memory_cases:
+        pts = []
+        for nd in (n0, n1):
+            s = run(args, f"memory-{el}-{mode}-nd{nd}", nd,
+                    ["-element", el, "-solver_mode", mode]).summary
+            pts.append((s["dofs"], mem(s) * 1048576.0))
+        (d0, m0), (d1, m1) = pts
+        slope = (m1 - m0) / (d1 - d0)
+        floor = (m0 - slope * d0) / 1048576.0
+        for (d, m), nd in zip(pts, (n0, n1)):
+            lines.append(f"| {el} | {mode} | {nd} | {d} | {m / 1048576:.0f} | "
+                         f"{slope:.0f} | {floor:.0f} |")
+    el, mode, _, n1 = args.memory_cases[0]
+    one = run(args, f"memory-{el}-{mode}-nd{n1}", n1, ["-element", el, "-solver_mode", mode])
+    two = run(args, f"memory-{el}-{mode}-nd{n1}-np2", n1,
+              ["-element", el, "-solver_mode", mode], np_=2)
+    lines += ["", f"Two ranks, {el} {mode} Nd = {n1}: peak per rank "
+              f"{' / '.join(f'{m:.0f}' for m in two.summary['peak_rss_mib'])} MiB against "
+              f"{mem(one.summary):.0f} MiB on one rank.", ""]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
-                                                       "ranks", "scaling", "quadratic"])
+                                                       "ranks", "scaling", "quadratic",
+                                                       "memory"])
     ap.add_argument("--q2-nd", type=int, nargs="+", default=[8, 12],
                     help="sizes (N) of the quadratic part")
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
@@ -336,6 +378,8 @@ def main(argv=None):
         args.nd, args.equal_nd, args.ranks_nd = [2], 2, [2]
         args.scaling_nd, args.kb_nd, args.scaling_ranks = 4, 4, [1, 2]
         args.q2_nd = [2]
+        args.memory_cases = [(el, mode, 1, 2) for el, mode, _, _ in MEMORY_CASES[:2]]
+    args.memory_cases = getattr(args, "memory_cases", MEMORY_CASES)
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
     args.record = args.record or (os.path.join(args.out_dir, "bench.md") if args.smoke else
                                   os.path.join(ROOT, "runs", "results", "bench.md"))
@@ -344,7 +388,8 @@ def main(argv=None):
              + harness.provenance_lines(1, make="bench", argv=argv)
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
-             "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic}
+             "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic,
+             "memory": part_memory}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)

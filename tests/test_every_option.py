@@ -38,6 +38,7 @@ CASES = {
     "output_formats": ("json,h5", {}),
     "check_tol": ("1e-4", {}),
     "statics_check": ("false", {"scene": BLOCK, "nd": "2"}),
+    "memory_check": ("false", {}),
     "solver_mode": ("fast", {"uzawa_r": "1e6"}),
     "c2f_levels": ("1", {"nd": "4"}),
     "mesh_refine": ("1", {"nd": "4"}),

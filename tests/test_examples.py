@@ -89,6 +89,8 @@ def test_bench(tmp_path):
     script("bench.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "bench.md")
     assert "Machine:" in md and "Command: `python runs/bench.py --smoke" in md
+    for el in ("q1", "bbar"):                               # the memory model's rows
+        assert any(len(r) == 7 and r[1] == "newton" for r in table_rows(md, el)), el
     rows = {r[1]: r for r in table_rows(md, 2) if len(r) == 18}        # Table 1, Nd = 2
     assert set(rows) == {"newton", "fast"}
     for r in rows.values():

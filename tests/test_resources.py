@@ -1,0 +1,140 @@
+"""The size check (contact/resources.py): the dofs it counts before the mesh are the mesh's;
+its estimate is the measured peak's order; a run that cannot fit ends in one line, before
+any mesh, naming the need, what is available and the ranks that would fit; with the check
+off, an allocation failure inside PETSc ends in one line too."""
+import os
+import resource
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT, paper_scene, skip_in_parallel
+from petsc4py import PETSc
+
+from contact import resources
+from contact.problem import ContactProblem
+
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+ENV.pop("OMPI_COMM_WORLD_SIZE", None)
+
+
+@pytest.mark.parametrize("element", ["q1", "bbar", "q2", "q2p1"])
+def test_dofs_counted_before_the_mesh_are_the_meshs(element):
+    sc = paper_scene(nd=2, mode="newton")
+    sc["mesh"]["element"] = element
+    sc["mesh"]["cells_per_nd"] = [3, 2, 1]
+    pr = ContactProblem(sc, PETSc.COMM_WORLD)
+    assert resources.dofs(sc, element) == pr.n_dofs
+
+
+def test_mesh_files_are_not_counted():
+    sc = paper_scene(nd=2)
+    sc["mesh"] = {"type": "file", "file": "x.msh", "nd": 1}
+    assert resources.dofs(sc, "q1") is None
+
+
+def test_the_model_grows_with_dofs_and_shrinks_with_ranks():
+    one = resources.peak_per_rank(10**6, "q1", "newton", 1)
+    assert resources.peak_per_rank(2 * 10**6, "q1", "newton", 1) > one
+    assert resources.peak_per_rank(10**6, "q1", "newton", 4) < one
+    assert resources.peak_per_rank(10**6, "q2", "newton", 1) > one     # q2's denser rows
+
+
+def _cli(args, ranks=1, limit_gib=None, timeout=120):
+    cmd = [sys.executable, "-m", "contact"] + args
+    if ranks > 1:
+        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
+
+    def limit():
+        if limit_gib:
+            b = int(limit_gib * (1 << 30))
+            resource.setrlimit(resource.RLIMIT_AS, (b, b))
+    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=timeout, preexec_fn=limit)
+
+
+def _one_line(p, out):
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode != 0, p.stdout[-2000:]
+    assert len(lines) == 1 and lines[0].startswith("contact: error:"), p.stderr
+    assert not os.path.isdir(out) or not os.listdir(out)
+    return lines[0]
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_too_large_for_the_process_limit(tmp_path, ranks):
+    """-nd 200 (145M dofs) under a 4 GiB address-space limit: refused before the mesh
+    (in well under the seconds building it would take), with the ranks that would fit."""
+    out = str(tmp_path / "out")
+    p = _cli(["-nd", "200", "-output_dir", out], ranks=ranks, limit_gib=4, timeout=60)
+    line = _one_line(p, out)
+    n = 3 * 601 * 201 * 201                              # 3 x the vertices of 600 x 200 x 200
+    assert f"{n:,} dofs" in line and "ulimit" in line and "ranks would fit" in line, line
+    need = resources.peak_per_rank(n, "q1", "newton", ranks)
+    assert f"about {need / (1 << 30):.1f} GiB per rank" in line, line
+
+
+@skip_in_parallel
+def test_too_large_for_the_node():
+    """Without a process limit the node's available memory bounds the run (a mesh no node
+    holds: 2.4e9 dofs also exceeds 32-bit indices, which is checked first where PETSc has
+    them)."""
+    avail = resources.node_headroom()
+    assert avail is not None and avail > 0
+    nd = 10
+    while resources.peak_per_rank(resources.dofs(paper_scene(nd=nd), "q1"), "q1", "newton",
+                                  1) < 2 * avail:
+        nd *= 2
+    sc = paper_scene(nd=nd)
+    n = resources.dofs(sc, "q1")
+    if n > 2**31 - 1 and PETSc.IntType().itemsize < 8:
+        pytest.skip("the mesh large enough exceeds 32-bit indices here")
+    p = _cli(["-nd", str(nd), "-output_dir", "/nonexistent/never"], timeout=60)
+    line = p.stderr.strip()
+    assert p.returncode != 0 and "on a node of 1 rank" in line and "nodes like this one" in line
+
+
+@skip_in_parallel
+def test_32_bit_indices():
+    p = _cli(["-nd", "3000"], timeout=60)
+    if PETSc.IntType().itemsize >= 8:
+        assert "32-bit" not in p.stderr
+    else:
+        assert p.returncode != 0 and "32-bit indices" in p.stderr.strip()
+        assert len(p.stderr.strip().splitlines()) == 1
+
+
+@skip_in_parallel
+def test_allocation_failure_in_petsc_is_one_line(tmp_path):
+    """-memory_check 0 goes on: then PETSc's allocation fails (here in the mesh) and the run
+    ends in one line naming it, not in a trace."""
+    out = str(tmp_path / "out")
+    p = _cli(["-nd", "200", "-memory_check", "0", "-output_dir", out], limit_gib=3,
+             timeout=120)
+    line = _one_line(p, out)
+    assert "out of memory" in line and "Traceback" not in p.stderr, p.stderr
+
+
+@skip_in_parallel
+def test_a_run_that_fits_says_nothing(tmp_path):
+    """The same run under a limit it fits in: no error, the check not in `skipped`."""
+    p = _cli(["-nd", "2", "-output_dir", str(tmp_path), "-output_formats", "json"],
+             limit_gib=6)
+    assert p.returncode == 0, p.stderr
+    import json
+    with open(tmp_path / "summary.json") as f:
+        s = json.load(f)
+    assert not any("size check" in k for k in s["skipped"])
+
+
+def test_the_model_is_the_recorded_one():
+    """MODEL is what `python runs/bench.py --part memory` recorded (bytes per dof, floor)."""
+    path = os.path.join(ROOT, "runs", "results", "bench-memory.md")
+    rows = {}
+    with open(path) as f:
+        for line in f:
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if len(cells) == 7 and cells[1] in ("newton", "fast", "faithful"):
+                rows[(cells[0], cells[1])] = (float(cells[6]), float(cells[5]))
+    assert rows == resources.MODEL
