@@ -42,6 +42,7 @@ help:
 	@echo "make view  [VIEW_DIR=runs/out/...]  ParaView (installed if needed) renders the last run -> PNGs"
 	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"
 	@echo "make petsc-gpu [GPU_ARGS=--cpu]  (offline) CUDA PETSc + petsc4py -> .gpu/prefix (README: GPU)"
+	@echo "make test-current               the current PETSc (3.26, CPU; built once): a focused part of the suite"
 	@echo "make install                    Debian packages + .venv (idempotent)"
 	@echo "make bench                      speed benchmarks -> runs/results/bench.md"
 	@echo "make report                     error against run time -> runs/results/report.md"
@@ -108,6 +109,35 @@ test2: install
 
 test4: install
 	mpirun -n 4 --oversubscribe $(PY) -m mpi4py -m pytest -q -p no:cacheprovider $(TESTS4)
+
+# The current PETSc release (CPU build): PETSc + mpi4py + petsc4py from PyPI's source
+# distributions by runs/petsc_gpu.sh --cpu against Debian's Open MPI, into CURRENT_PREFIX
+# (built once per machine, about 25 minutes on 2 cores; reused when present), then a focused
+# part of the suite on it, on 1 and 2 ranks: the code that differs between 3.18 and 3.26
+# (contact/petsc_compat.py) and every solver path.
+CURRENT_DIST   ?= .gpu/dist
+CURRENT_PREFIX ?= .gpu/cpu-prefix
+PY_TARGET       = $(shell $(SYSPY) -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+TESTS_CURRENT  ?= tests/test_expression.py tests/test_mesh.py tests/test_transfer.py \
+	tests/test_multigrid.py tests/test_mixed.py tests/test_jacobian.py tests/test_coulomb.py \
+	tests/test_loops.py tests/test_quadratic.py tests/test_output_files.py \
+	tests/test_friction_held.py tests/test_newton_globalisation.py tests/test_device_paths.py
+TESTS_CURRENT2 ?= tests/test_ranks.py tests/test_multigrid.py tests/test_mixed.py \
+	tests/test_coulomb.py
+.PHONY: test-current petsc-current
+
+petsc-current: install
+	@$(call apt_ensure,libopenmpi-dev)
+	@test -f $(CURRENT_PREFIX)/env.sh || { \
+	  PYTHON=$(SYSPY) PY_TARGET=$(PY_TARGET) runs/petsc_gpu.sh fetch $(CURRENT_DIST) && \
+	  PYTHON=$(SYSPY) PY_TARGET=$(PY_TARGET) runs/petsc_gpu.sh build $(CURRENT_DIST) \
+	    $(CURRENT_PREFIX) --cpu --mpi system; }
+
+test-current: petsc-current
+	. $(CURRENT_PREFIX)/env.sh && $(PY) -c 'import petsc4py; print("PETSc", petsc4py.__version__)'
+	. $(CURRENT_PREFIX)/env.sh && $(PY) -m pytest -q -p no:cacheprovider $(TESTS_CURRENT)
+	. $(CURRENT_PREFIX)/env.sh && $(MPIRUN) $(PY) -m mpi4py -m pytest -q -p no:cacheprovider \
+	  $(TESTS_CURRENT2)
 
 bench: install
 	$(PY) runs/bench.py $(BENCH_ARGS)

@@ -9,6 +9,10 @@ names or behaviour changed between them, in one place.
 """
 from petsc4py import PETSc
 
+#: PCPBJACOBI applies its blocks on the device (CUDA, Kokkos): measured with 3.26 on an
+#: H200 (runs/results/gpu.md); 3.18 applies them on the host (earlier releases unmeasured)
+DEVICE_PBJACOBI = PETSc.Sys.getVersion() >= (3, 26, 0)
+
 #: PCFieldSplitSchurPreType
 SCHUR_PRE = getattr(PETSc.PC, "FieldSplitSchurPreType", None) or PETSc.PC.SchurPreType
 
