@@ -3,6 +3,9 @@ default preconditioner on a refined mesh: its finest interpolation is the hierar
 turned into the problem's basis and zero on the clamped rows (checked against the frame's
 own Vec conversion), its CG iteration count does not grow with Nd, it gives GAMG's answer
 in the default solver, and the options database switches it off. Runs on 1, 2 and 4 ranks."""
+import copy
+import os
+
 import numpy as np
 import pytest
 from conftest import fields, paper_scene, rel_err, solve
@@ -10,6 +13,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import multigrid, options, scene as scenes
+from contact.coulomb import CoulombNewton
 from contact.problem import ContactProblem
 
 
@@ -165,3 +169,39 @@ def test_one_level_mesh_gets_gamg():
     assert len(pr.hierarchy.levels) == 1
     assert multigrid.for_problem(pr.disc) is None
     assert pr.loops.inner.ksp.getPC().getType() == PETSc.PC.Type.GAMG
+
+
+@pytest.mark.parametrize("element", ["q1", "q2"])
+def test_preconditioner_in_the_dms_mat_type(element):
+    """With an AIJ-family Mat type asked for (aijsell here, standing in for aijcusparse:
+    CONTACT_TEST_MAT_TYPE overrides it on a GPU PETSc), every Mat of the Newton solve's
+    PCMG (the interpolations, each level's operator) is of that type, so that on a GPU no
+    transfer runs on the host; the answer is the AIJ run's."""
+    kind = os.environ.get("CONTACT_TEST_MAT_TYPE", "aijsell")
+    sc = paper_scene(nd=8 if element == "q1" else 4, mode="newton")     # 2 levels or more
+    sc["mesh"]["element"] = element
+    ref = ContactProblem(copy.deepcopy(sc), PETSc.COMM_WORLD).solve()
+    PETSc.Options().setValue("dm_mat_type", kind)
+    try:
+        pr = ContactProblem(copy.deepcopy(sc), PETSc.COMM_WORLD).solve()
+        assert kind in pr.A.getType()
+        n = CoulombNewton(pr.disc.A, pr.disc.b, pr.disc.cs, pr.disc.clamped,
+                          pr.disc.diag_scale, pr.disc.multigrid).set_from_options(pr.scene)
+        n.set_load(pr.disc.b, pr.disc.cs.gap)
+        n._gather_load()
+        n.mg.set_interpolations(n.ksp)
+        _, st = n._state(pr.x, n.r)
+        K, rhs = n._system(st)
+        assert n._linear_solve(K, rhs, 1e-8)
+        pc = n.ksp.getPC()
+        assert pc.getType() == PETSc.PC.Type.MG
+        levels = pc.getMGLevels()
+        assert levels >= 2
+        types = {f"P{j}": pc.getMGInterpolation(j).getType() for j in range(1, levels)}
+        types.update({f"A{j}": pc.getMGSmoother(j).getOperators()[0].getType()
+                      for j in range(levels)})
+        assert all(kind in t for t in types.values()), types
+    finally:
+        PETSc.Options().delValue("dm_mat_type")
+    assert np.abs(pr.x.getArray() - ref.x.getArray()).max() <= \
+        1e-8 * np.abs(ref.x.getArray()).max()
