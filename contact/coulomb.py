@@ -66,6 +66,8 @@ EPS = float(np.finfo(PETSc.RealType).eps)
 #: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
 CONTINUATION_RTOL = 1e-8
 INSERT = PETSc.InsertMode.INSERT_VALUES
+SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+SAME = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
 
 
 def _rows_of(M, rows):
@@ -155,6 +157,8 @@ class CoulombNewton(Loop):
         self.bc = None
         self.clamped = np.asarray(clamped, dtype=PETSc.IntType)
         self.diag_scale = float(diag_scale if split is None else split.diag_scale)
+        self.separate = False            # K = A + D in a matrix of its own (_jacobian_storage)
+        self._applied = None             # separate: the D that K holds now
         self.ksp_iterations = 0
         self.pc_setups = 0
         self._rebuild = False
@@ -215,9 +219,40 @@ class CoulombNewton(Loop):
             with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
                                    self.prefix + "ksp_gmres_restart": "30"}):
                 multigrid.configure(self.ksp, self.mg)
+        self._jacobian_storage()
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
             self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
+
+    def _jacobian_storage(self):
+        """-newton_jacobian: in place (K is A, its contact rows changed each step) or
+        separate (K = A + D, a matrix of its own; D, the contact rows' change K - A, is
+        added and the last one taken off by MatAXPY: A is never changed, and on a GPU
+        neither it nor K is sent to the device again, only D's few rows)."""
+        kind = self.jacobian
+        if kind not in ("auto", "inplace", "separate"):
+            raise ValueError(f"-newton_jacobian must be auto, inplace or separate, got "
+                             f"{kind!r}")
+        if kind == "separate" and self.split is not None:
+            raise ValueError("-newton_jacobian separate: not with the pressure split "
+                             "(-newton_pressure_split off, or inplace)")
+        separate = kind == "separate" or (kind == "auto" and self.split is None
+                                          and multigrid.gpu_vecs())
+        if separate == self.separate:
+            return
+        self.separate = separate
+        self.K = self.A.duplicate(copy=True)
+        self.K.setOption(PETSc.Mat.Option.SPD, False)            # (A's flags, copied)
+        self.K.setOption(PETSc.Mat.Option.SYMMETRIC, False)
+        self.mats = [self.K]
+        if self.D is None:
+            m = self.cs.local_size
+            self.D = _pattern_matrix(self.A, self.rows,
+                                     self.cols.reshape(3 * m, self.cols.shape[2]))
+        kind = options.aij_subtype()
+        if kind is not None and not fem.is_blocked(self.K):       # K's type: MatAXPY on
+            self.D.convert(kind)                                  # the device (in place)
+        self._applied = self.D.duplicate(copy=True)               # D now in K: 0
 
     def set_load(self, b, gap, path=None):
         """The load and gap of the next solves (a load increment's); path(s, out): the load
@@ -287,13 +322,18 @@ class CoulombNewton(Loop):
                                                   cols, vals[:, None, :], INSERT)
 
     def _own_rows(self):
-        """The Jacobian's matrices' own contact rows back (not assembled)."""
+        """The Jacobian's matrices' own contact rows back (not assembled; in place only)."""
+        if self.separate:
+            return
         for M, (cols, vals) in zip(self.mats, self.padded):
             W = cols.shape[2]
             self._set_contact_rows(self.rows, cols.reshape(-1, W), vals.reshape(-1, W), M)
 
     def _restore(self):
-        """The Jacobian's matrices as they were (A, or A_g and G^T)."""
+        """The Jacobian's matrices as they were (A, or A_g and G^T; separate: A was never
+        changed)."""
+        if self.separate:
+            return
         self._own_rows()
         for M in self.mats:
             M.assemble()
@@ -389,7 +429,8 @@ class CoulombNewton(Loop):
                 V.append(v)
             rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
             cols = np.concatenate([self.cols[k][q] for k in range(2)])
-            self._set_contact_rows(rows, cols, np.concatenate(V))
+            if not self.separate:                       # (separate: K += D below)
+                self._set_contact_rows(rows, cols, np.concatenate(V))
             for M, (gc, gv) in zip(self.mats[1:], self.padded[1:]):   # G^T: the same rows
                 self._set_contact_rows(                                 # without rho terms
                     rows, np.concatenate([gc[k][q] for k in range(2)]),
@@ -403,8 +444,9 @@ class CoulombNewton(Loop):
         for k in range(2):              # collective: every rank, with or without slip nodes
             c[k].setArray(t[k])
             cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)
-        for M in self.mats:
-            M.assemble()
+        if not self.separate:
+            for M in self.mats:
+                M.assemble()
         # Dirichlet rows: dx_n = -h (active), dx_t = -x_t (stick); their columns stay (the
         # rows off the contact dofs stay A's, which the residual reads)
         act, stick, X = st["active"], st["stick"], st["X"]
@@ -415,11 +457,19 @@ class CoulombNewton(Loop):
         self.dx.setValues(rows, vals)
         self.dx.assemble()
         self._dirichlet = (rows, vals)
-        K.zeroRows(rows, self.diag_scale, self.dx, rhs)
+        if self.separate:                  # what zeroRows does to rhs; K's rows: D's
+            rhs.setValues(rows, self.diag_scale * vals)
+            rhs.assemble()
+        else:
+            K.zeroRows(rows, self.diag_scale, self.dx, rhs)
         for M in self.mats[1:]:
             M.zeroRows(rows, diag=0.0)
         if self.D is not None:
             self._difference(st, q, V if q.size else None)
+        if self.separate:                  # K = A + D: the last D off, this one on
+            K.axpy(-1.0, self._applied, SUBSET)
+            K.axpy(1.0, self.D, SUBSET)
+            self.D.copy(self._applied, SAME)
         _EV_MAT.end()
         return K, rhs
 

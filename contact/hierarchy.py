@@ -386,18 +386,12 @@ def prolongation(coarse, fine):
     P = PETSc.Mat().createAIJ(size=((3 * nv, PETSc.DETERMINE), (3 * (c1 - c0), PETSc.DETERMINE)),
                               bsize=3, csr=(I, J, V), comm=comm)
     P.assemble()
-    kind = transfer_type()
+    # the DM's AIJ-family type where one is asked for (aijcusparse, ...): PCMG's
+    # interpolations, restrictions and Galerkin products then run where the operators
+    # live (host AIJ transfers cost 17,708 GPU->CPU copies at Nd = 80 on an H200,
+    # runs/results/gpu.md)
+    kind = options.aij_subtype()
     if kind is not None:
         P.convert(kind)                                    # in place
     return P
 
-
-def transfer_type():
-    """The Mat type of the interpolations: the AIJ-family type the command line asks for
-    (-dm_mat_type / -mat_type: aijcusparse, aijkokkos, aijsell, ...), so that PCMG's
-    interpolations and restrictions and the Galerkin products run where the operators
-    live (on the device with GPU types; host AIJ transfers cost 17,708 GPU->CPU copies at
-    Nd = 80 on an H200, runs/results/gpu.md); None: AIJ."""
-    t = (options.requested_type("mat_type") or "aij").lower()
-    base = t[3:] if t.startswith(("seq", "mpi")) else t
-    return t if base.startswith("aij") and base != "aij" else None

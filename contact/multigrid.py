@@ -69,7 +69,7 @@ def blocked(disc):
     opts = PETSc.Options()
     if (disc.level_index == 0 or disc.element != "q1"
             or options.get("solver_mode", disc.scene) != "newton"
-            or options.requested_type("mat_type") is not None or _gpu_vecs()):
+            or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
     for prefix in PREFIXES:
         if opts.hasName(prefix + "pc_mg_galerkin"):
@@ -79,7 +79,7 @@ def blocked(disc):
     return True
 
 
-def _gpu_vecs():
+def gpu_vecs():
     vec = (options.requested_type("vec_type") or "").lower()
     return any(k in vec for k in ("cuda", "kokkos", "hip", "viennacl"))
 
@@ -240,7 +240,7 @@ def level_pc_type():
     the default solver's Krylov iterations (46 -> 22) and its solve time falls 26 % (19.2
     -> 14.2 s), the same answer; on an H200 with PETSc 3.26 (runs/results/gpu.md) it runs
     on the device and halves them too (161 -> 79; solve 9.3 -> 6.8 s)."""
-    if _gpu_vecs() and not petsc_compat.DEVICE_PBJACOBI:
+    if gpu_vecs() and not petsc_compat.DEVICE_PBJACOBI:
         return PETSc.PC.Type.JACOBI
     return PETSc.PC.Type.PBJACOBI
 

@@ -171,6 +171,12 @@ REGISTRY = [
            "-newton_pc_fieldsplit_*; -newton_ew_max 0.01), which converges at nu = 0.4999 "
            "where GAMG on the condensed stiffness does not; off, the solves of the "
            "condensed stiffness", "auto|off"),
+    Option("newton_jacobian", "auto", str, "where the Newton Jacobian lives: inplace, A "
+           "itself with its contact rows changed each step (no second matrix); separate, "
+           "K = A + D in a matrix of its own, D (the contact rows' change) added and taken "
+           "off by MatAXPY, so that A is never changed and on a GPU never sent again; auto: "
+           "separate with GPU Vec types (-vec_type cuda, kokkos, hip), else inplace",
+           "auto|inplace|separate"),
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
     Option("newton_watchdog", 6, int, "full Newton steps taken also when the residual "
@@ -265,6 +271,14 @@ def requested_type(kind, opts=None):
         if opts.hasName(name):
             return opts.getString(name)
     return None
+
+
+def aij_subtype():
+    """The AIJ-family Mat type other than AIJ the command line asks for (-dm_mat_type /
+    -mat_type: aijcusparse, aijkokkos, aijsell, ...), or None."""
+    t = (requested_type("mat_type") or "aij").lower()
+    base = t[3:] if t.startswith(("seq", "mpi")) else t
+    return t if base.startswith("aij") and base != "aij" else None
 
 
 @contextlib.contextmanager

@@ -68,10 +68,14 @@ CASES = {
 }
 
 
-def _newton(pr):
+def _newton(pr, storage="inplace"):
     d = pr.disc
-    n = CoulombNewton(d.A, d.b, d.cs, d.clamped, d.diag_scale, d.multigrid,
-                      close_first=pr.contact_held).set_from_options(pr.scene)
+    PETSc.Options().setValue("newton_jacobian", storage)
+    try:
+        n = CoulombNewton(d.A, d.b, d.cs, d.clamped, d.diag_scale, d.multigrid,
+                          close_first=pr.contact_held).set_from_options(pr.scene)
+    finally:
+        PETSc.Options().delValue("newton_jacobian")
     n.set_load(d.b, d.cs.gap)
     n._gather_load()
     if n.mg is not None:
@@ -79,12 +83,12 @@ def _newton(pr):
     return n
 
 
-def _errors(case, seed=0, scale=0.05, wrong=0.0):
+def _errors(case, seed=0, scale=0.05, wrong=0.0, storage="inplace"):
     """(e(t) for t in T, the set counts) at a perturbed solution of the case. wrong: add
     wrong x (the normal row of A) to the slip nodes' first tangential rows of K (a wrong
     F n A_n term, as a sign or factor error would make it)."""
     pr = ContactProblem(CASES[case]()).solve()
-    n = _newton(pr)
+    n = _newton(pr, storage)
     x = pr.x.copy()
     rng = np.random.default_rng(seed + pr.comm.getRank())
     noise = x.duplicate()
@@ -121,9 +125,11 @@ def _errors(case, seed=0, scale=0.05, wrong=0.0):
     return np.array(e), counts
 
 
+@pytest.mark.parametrize("storage", ["inplace", "separate"])
 @pytest.mark.parametrize("case", list(CASES))
-def test_newton_step_is_the_linearisation(case):
-    e, counts = _errors(case)
+def test_newton_step_is_the_linearisation(case, storage):
+    """(storage: -newton_jacobian, K as A changed in place, or K = A + D of its own)"""
+    e, counts = _errors(case, storage=storage)
     assert counts["slip"] > 0 and counts["stick"] > 0, counts
     assert counts["stick"] + counts["slip"] == counts["active"], counts
     if case != "incline":                 # held by friction alone: every node in contact
@@ -141,3 +147,36 @@ def test_the_check_sees_a_wrong_jacobian():
     e, counts = _errors("beam_F0.3", wrong=0.5)
     assert counts["slip"] > 0
     assert e[-1] / T[-1] > 1e-3 and e[1] / e[2] < 20.0, e
+
+
+@pytest.mark.parametrize("case", ["beam_F0.3", "block_gap"])
+def test_separate_jacobian_is_the_inplace_one_and_leaves_a(case):
+    """-newton_jacobian separate (K = A + D, MatAXPY: the GPU's storage) gives the in-place
+    K (the same action on a random vector, the same rhs) at two successive Newton points
+    (so the last D is taken off right), and A is not touched: its state and values stay."""
+    pr = ContactProblem(CASES[case]()).solve()
+    one, two = _newton(pr, "inplace"), _newton(pr, "separate")
+    assert not one.separate and two.separate and two.K is not pr.disc.A
+    A = pr.disc.A
+    rng = np.random.default_rng(3 + pr.comm.getRank())
+    v = pr.x.duplicate()
+    lo, hi = v.getOwnershipRange()
+    v.setArray(rng.standard_normal(hi - lo))
+    for scale in (0.05, 0.2):                       # two points, other sets
+        x = pr.x.copy()
+        x.axpy(scale, v)
+        out = []
+        for n in (two, one):
+            state, a0 = A.stateGet(), A.norm(PETSc.NormType.FROBENIUS)
+            _, st = n._state(x, n.r)
+            K, rhs = n._system(st)
+            out.append((K * v, rhs.copy()))
+            if n is two:                            # A untouched
+                assert A.stateGet() == state and A.norm(PETSc.NormType.FROBENIUS) == a0
+            else:                                   # (the check sees a change)
+                assert A.stateGet() > state
+                n._restore()
+        (k2, r2), (k1, r1) = out
+        k2.axpy(-1.0, k1)
+        r2.axpy(-1.0, r1)
+        assert k2.norm() <= 1e-12 * k1.norm() and r2.norm() <= 1e-14 * r1.norm()
