@@ -95,6 +95,12 @@ def clean_options():
 
 
 skip_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial-only test")
+#: a direct solver this PETSc has: MUMPS (Debian's PETSc), else SuperLU_dist, else PETSc's
+#: own LU (serial only: a PETSc built by runs/petsc_gpu.sh has no external solver)
+DIRECT = next((p for p in ("mumps", "superlu_dist") if PETSc.Sys.hasExternalPackage(p)),
+              "petsc")
+needs_direct = pytest.mark.skipif(MPI.COMM_WORLD.size > 1 and DIRECT == "petsc",
+                                  reason="no parallel LU (MUMPS or SuperLU_dist) here")
 only_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size == 1,
                                       reason="compares a parallel run with a serial one")
 

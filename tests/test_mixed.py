@@ -13,7 +13,7 @@ mixed.py, -newton_pressure_split):
 """
 import numpy as np
 import pytest
-from conftest import block_scene, gather, solve
+from conftest import DIRECT, block_scene, gather, needs_direct, solve
 from petsc4py import PETSc
 from test_element import F_VARYING, _bbar_block
 from test_independent_reference import uniaxial
@@ -53,6 +53,7 @@ def test_split_condenses_to_the_bbar_stiffness(nu):
     assert Ag.norm() > 0.3 * A.norm()
 
 
+@needs_direct
 def test_mixed_solve_is_the_condensed_solve():
     """GMRES with the split's fieldsplit on [[A_g, Gq^T], [R Gq, -Cq]] [u; q] = [b; 0]:
     u = A^-1 b, and the pressure rows' residual is small where the condensed one is."""
@@ -75,7 +76,7 @@ def test_mixed_solve_is_the_condensed_solve():
     lu.setOperators(disc.A)
     lu.setType("preonly")
     lu.getPC().setType("lu")
-    lu.getPC().setFactorSolverType("mumps")
+    lu.getPC().setFactorSolverType(DIRECT)
     ref = b.duplicate()
     lu.solve(b, ref)
     r = b.duplicate()
@@ -92,8 +93,9 @@ def test_mixed_solve_is_the_condensed_solve():
 @pytest.mark.parametrize("nu,element,given,used", [
     (0.45, "bbar", {}, True), (0.4999, "bbar", {}, True), (0.38, "bbar", {}, False),
     (0.45, "q1", {}, False), (0.45, "bbar", {"newton_pressure_split": "off"}, False),
-    (0.4999, "bbar", {"newton_pc_type": "lu", "newton_ksp_type": "preonly",
-                      "newton_pc_factor_mat_solver_type": "mumps"}, False)])
+    pytest.param(0.4999, "bbar", {"newton_pc_type": "lu", "newton_ksp_type": "preonly",
+                                  "newton_pc_factor_mat_solver_type": DIRECT}, False,
+                 marks=needs_direct)])
 def test_when_the_split_is_used(nu, element, given, used):
     sc = _bbar_block(0.3, nu)
     sc["mesh"]["element"] = element

