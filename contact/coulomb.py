@@ -453,13 +453,12 @@ class CoulombNewton(Loop):
         rows = np.concatenate([np.asarray(cs.dofs[2])[act], np.asarray(cs.dofs[0])[stick],
                                np.asarray(cs.dofs[1])[stick]]).astype(PETSc.IntType)
         vals = np.concatenate([-st["h"][act], -X[0][stick], -X[1][stick]])
+        #: per contact-space component k: (the nodes whose row k is eliminated, values)
+        self._dirichlet = [(stick, -X[0][stick]), (stick, -X[1][stick]), (act, -st["h"][act])]
         self.dx.set(0.0)
-        self.dx.setValues(rows, vals)
-        self.dx.assemble()
-        self._dirichlet = (rows, vals)
+        self._set_at_contact(self.dx, self._dirichlet)
         if self.separate:                  # what zeroRows does to rhs; K's rows: D's
-            rhs.setValues(rows, self.diag_scale * vals)
-            rhs.assemble()
+            self._set_at_contact(rhs, self._dirichlet, self.diag_scale)
         else:
             K.zeroRows(rows, self.diag_scale, self.dx, rhs)
         for M in self.mats[1:]:
@@ -525,10 +524,21 @@ class CoulombNewton(Loop):
             b.destroy()
             sol.destroy()
         self.dx.pointwiseMult(self.dx, self.free)         # exact eliminated values
-        self.dx.setValues(*self._dirichlet)
-        self.dx.assemble()
+        self._set_at_contact(self.dx, self._dirichlet)
         _EV_KSP.end()
         return ok
+
+    def _set_at_contact(self, v, sel, scale=1.0):
+        """v at the contact dofs of component k of the nodes sel[k][0] <- scale sel[k][1],
+        the other entries of v kept: through contact space (VecScatter both ways, the
+        contact nodes' values on the host: no full-size Vec leaves a device)."""
+        cs, c = self.cs, self.c
+        for k, (nodes, vals) in enumerate(sel):         # collective: every rank, each k
+            cs.gather(v, c[k], k)
+            a = cs.local_array(c[k])                    # (a copy)
+            a[nodes] = scale * vals
+            c[k].setArray(a)
+            cs.scatter(c[k], v, k)
 
     # -- solve ---------------------------------------------------------------------------------
     def solve(self, x, rtol=None):

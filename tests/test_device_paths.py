@@ -11,7 +11,11 @@ runs where the Vec lives. Two things would spoil that; both are checked here on 
     the innermost loop on the stack (FixedPoint/Uzawa/APG/SSN `.solve`); a static scan of
     the loop modules covers the array *properties* (`.array`, `.array_r`, ...), which the
     profiler cannot see. The semismooth Newton path is known to build its matrix from NumPy
-    arrays on the host each Newton step: its count is reported, not asserted zero.
+    arrays on the host each Newton step: its count is reported, not asserted zero. The
+    default solver (coulomb.py) touches host memory by design, but only in contact space:
+    the test asserts that every host access inside its iteration is to a contact-space
+    Vec or the contact rows' matrix D (and to K's contact rows with -newton_jacobian
+    inplace), never to a full-size Vec or A.
 (b) a Vec of another type than the DM's (a host Vec among device ones): with
     `-dm_vec_type mpi` on a one-process communicator (default there: seq), every Vec the loops
     hold has the DM's type, and the answer equals the default-type answer. On several ranks
@@ -34,6 +38,7 @@ from petsc4py import PETSc
 
 import contact
 from contact.apg import APG
+from contact.coulomb import CoulombNewton
 from contact.fixedpoint import FixedPoint
 from contact.newton import SemismoothNewton
 from contact.problem import ContactProblem
@@ -53,7 +58,8 @@ HOST_PROPERTIES = frozenset({"array", "array_r", "array_w", "buffer", "buffer_r"
                              "__array_interface__"})
 #: the loops, by the code object of their solve()
 LOOPS = {FixedPoint.solve.__code__: "FixedPoint", Uzawa.solve.__code__: "Uzawa",
-         APG.solve.__code__: "APG", SemismoothNewton.solve.__code__: "SSN"}
+         APG.solve.__code__: "APG", SemismoothNewton.solve.__code__: "SSN",
+         CoulombNewton.solve.__code__: "Newton"}
 #: host accesses inside a loop frame that are set-up, not iteration work: the start vector
 #: of the power iteration for L_A, once per problem (the estimate is cached)
 SETUP_IN_LOOPS = {"subproblem.py:power_iteration"}
@@ -83,9 +89,11 @@ class HostAccesses:
 
     def __init__(self):
         self.counts = collections.Counter()
+        #: (loop, caller) -> what was touched: ("vec", local size) or ("mat", handle)
+        self.objects = collections.defaultdict(set)
         self._tool = None
 
-    def _record(self, frame):
+    def _record(self, frame, obj=None):
         f, loop = frame, "outside"
         while f is not None:
             if f.f_code in LOOPS:
@@ -93,6 +101,10 @@ class HostAccesses:
                 break
             f = f.f_back
         self.counts[(loop, _where(frame))] += 1
+        if isinstance(obj, PETSc.Vec):
+            self.objects[(loop, _where(frame))].add(("vec", obj.getLocalSize()))
+        elif isinstance(obj, PETSc.Mat):
+            self.objects[(loop, _where(frame))].add(("mat", obj.handle))
 
     @staticmethod
     def _is_host(fn, obj):
@@ -101,12 +113,12 @@ class HostAccesses:
 
     def _profile(self, frame, event, arg):
         if event == "c_call" and self._is_host(arg, getattr(arg, "__self__", None)):
-            self._record(frame)
+            self._record(frame, arg.__self__)
 
     def _call(self, code, offset, fn, arg0):
         obj = arg0 if isinstance(arg0, (PETSc.Vec, PETSc.Mat)) else getattr(fn, "__self__", None)
         if self._is_host(fn, obj):
-            self._record(sys._getframe(1))
+            self._record(sys._getframe(1), obj)
 
     def __enter__(self):
         mon = getattr(sys, "monitoring", None)
@@ -270,6 +282,42 @@ def test_ssn_host_work_per_newton_step(comm):
     assert sum(ssn.values()) >= steps                 # the known host work is seen
     # nothing of the fixed point and Uzawa loops themselves
     assert {k: n for k, n in h.inside(("FixedPoint", "Uzawa")).items()} == {}
+
+
+@pytest.mark.parametrize("storage", ["separate", "inplace"])
+def test_newton_host_work_is_the_contact_rows(comm, storage):
+    """The default solver (contact/coulomb.py): inside its iteration a host array is only
+    ever one of contact space (a Vec of at most 3 x the rank's contact nodes: the contact
+    rows' values, kilobytes), and a Mat's values only D's (K - A in the contact rows) with
+    -newton_jacobian separate (the GPU's), or also K's own contact rows in place: never a
+    full-size Vec or A. (-vec_type cuda then moves only those between host and device.)"""
+    if not _profiler_sees_petsc4py():
+        pytest.skip("the profiler cannot see petsc4py's calls here (see the probe test)")
+    _set_types(VEC_TYPE, MAT_TYPE)
+    PETSc.Options().setValue("newton_jacobian", storage)
+    try:
+        pr = ContactProblem(paper_scene(nd=4, mode="newton", c2f_levels=0), comm)
+        with HostAccesses() as h:
+            pr.solve()
+    finally:
+        for k in ("newton_jacobian", "dm_vec_type", "dm_mat_type"):
+            PETSc.Options().delValue(k)
+    n = pr.inner
+    assert n.name == "newton" and n.separate == (storage == "separate")
+    inside = {k: h.objects[k] for k in h.inside(("Newton",))}
+    _report(f"Newton host accesses ({storage}, {n.iterations} steps)",
+            {k: h.counts[k] for k in inside})
+    touched = set().union(*inside.values()) if inside else set()
+    vecs = {s for kind, s in touched if kind == "vec"}
+    mats = {s for kind, s in touched if kind == "mat"}
+    m = n.cs.local_size
+    assert max(vecs, default=0) <= 3 * m, (vecs, m)
+    allowed = ({n.D.handle} if n.D is not None else set()) | (
+        set() if storage == "separate" else {n.K.handle})        # (inplace: K is A)
+    assert mats <= allowed, (mats, allowed)
+    if storage == "separate":
+        assert n.K.handle != pr.disc.A.handle and pr.disc.A.handle not in mats
+    assert MPI.COMM_WORLD.allreduce(sum(h.counts[k] for k in inside)) > 0   # seen at all
 
 
 # -- (b) every Vec of the loops has the DM's type ---------------------------------------------
