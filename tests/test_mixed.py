@@ -121,7 +121,9 @@ def test_default_newton_steps_do_not_grow_with_nu(friction):
     (-newton_pressure_split off): the friction states cycle on its inexact steps; with the
     watchdog of 3 steps DIVERGED_MAX_IT on 1 and 2 ranks, 90 steps at F = 0.3 on 4; with
     that of 6 (and the continuations) 88, 18, 74 steps at F = 0.3 and 64, 81, 81 with the
-    varying F, on 1, 2, 4 ranks: always more than twice the split's."""
+    varying F, on 1, 2, 4 ranks: always more than twice the split's (PETSc 3.18). PETSc
+    3.26's GAMG does better there (10 steps with the varying F on 1 and 2 ranks): more than
+    the split's, not twice."""
     steps, its = {}, {}
     for nu in (0.3, 0.45, 0.49, 0.4999):
         pr = solve(_bbar_block(friction, nu))
@@ -135,7 +137,8 @@ def test_default_newton_steps_do_not_grow_with_nu(friction):
         except ConvergenceError as e:
             assert "Newton loop did not converge" in str(e)
         else:
-            assert pr.inner.iterations > 2 * steps[0.4999], pr.inner.iterations
+            factor = 2 if PETSc.Sys.getVersion()[:2] == (3, 18) else 1
+            assert pr.inner.iterations > factor * steps[0.4999], pr.inner.iterations
 
 
 def test_no_contact_solve_closed_form():
