@@ -89,6 +89,10 @@ REGISTRY = [
     Option("statics_check", True, bool, "refuse a friction-held body whose tangential load "
            "exceeds F N, or whose load's resultant meets the foundation outside its flat "
            "contact face (statics of a rigid block: it slides, it tips over)", "BOOL"),
+    Option("error_estimate", True, bool, "estimate the discretisation error of max |u|, "
+           "the contact force and the energy from the run's own coarse-to-fine levels "
+           "(Richardson; three levels or more; their Newton iterations then go to "
+           "-newton_rtol 1e-10)", "BOOL"),
     Option("memory_check", True, bool, "before the mesh: estimate the peak memory per rank "
            "(runs/results/bench-memory.md) and stop, saying how many ranks would fit, where "
            "it exceeds what the ranks can have; 0: go on anyway", "BOOL"),

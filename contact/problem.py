@@ -17,7 +17,7 @@ import time
 
 from petsc4py import PETSc
 
-from . import admissibility, driver, fem, options, transfer
+from . import admissibility, driver, estimate, fem, options, transfer
 from .apg import APG
 from .discretisation import Discretisation, element_of
 from .hierarchy import MeshHierarchy
@@ -114,12 +114,16 @@ class ContactProblem:
         sc = copy.deepcopy(self.scene)
         sc["mesh"]["nd"] = h.levels[j - lowest].nd
         # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of
-        # a coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol
-        with options.inserted({"newton_rtol": "1e-6"}):
+        # a coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol; with
+        # the error estimate (estimate.py) at COARSE_RTOL, far below the level differences
+        estimating = options.get("error_estimate")
+        rtol = estimate.COARSE_RTOL if estimating else 1e-6
+        with options.inserted({"newton_rtol": f"{rtol:g}"}):
             coarse = ContactProblem(sc, self.comm, levels - 1, h, j).solve()
         self.coarse_runs = coarse.coarse_runs + [
             {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
-             "iterations": coarse.iterations()}]
+             "iterations": coarse.iterations(),
+             **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
         l0, g0 = self.cs.vec(), self.cs.vec()

@@ -4,7 +4,7 @@ import resource
 import petsc4py
 from petsc4py import PETSc
 
-from . import residuals as res, stress
+from . import estimate, options, residuals as res, stress
 from .loop import CONVERGED_ROUNDOFF
 
 
@@ -20,6 +20,30 @@ def _tolerances(problem):
 
 def summary(problem, time_total):
     """The dictionary written to summary.json (keys documented in the README)."""
+    s = _summary(problem, time_total)
+    s["error_estimate"], s["error_estimate_note"] = _estimate(problem, s)
+    return s
+
+
+def _estimate(problem, s):
+    """(estimate.from_levels of the coarse runs and this run, words) for summary.json."""
+    if not options.get("error_estimate"):
+        return None, "no estimate: -error_estimate 0"
+    cr = s["contact_result"] or {}
+    this = {"max_displacement": s["max_displacement"], "energy": s["energy"],
+            "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
+    levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
+    est = estimate.from_levels(levels + [(problem.nd, this)], problem.element)
+    if est is not None:
+        return est, (f"discretisation error from the levels Nd = "
+                     f"{', '.join(str(n) for n, _ in levels + [(problem.nd, None)])}")
+    why = ("load increments (no coarse-to-fine start)" if s["load_steps"] > 1 else
+           f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
+           "of 2, Nd >= 16; -c2f_levels; a mesh file has one)")
+    return None, f"no estimate: {why}"
+
+
+def _summary(problem, time_total):
     comm = problem.comm
     mpicomm = comm.tompi4py()
     return {
@@ -117,6 +141,12 @@ def print_summary(comm, s, outdir=None):
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
              f"{s['converged']}" + _roundoff_note(s),
              f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}"]
+    est = s.get("error_estimate")
+    if est is not None:
+        nds = [int(n) for n in next(iter(est.values()))["levels"]] if est else []
+        lines += estimate.lines(est, nds)
+    elif s.get("error_estimate_note"):
+        lines.append(f"error estimate: {s['error_estimate_note']}")
     if s["skipped"]:
         lines.append("skipped: " + "; ".join(s["skipped"]))
     if outdir:

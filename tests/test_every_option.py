@@ -39,6 +39,7 @@ CASES = {
     "check_tol": ("1e-4", {}),
     "statics_check": ("false", {"scene": BLOCK, "nd": "2"}),
     "memory_check": ("false", {}),
+    "error_estimate": ("false", {"nd": "16"}),
     "newton_jacobian": ("separate", {}),
     "solver_mode": ("fast", {"uzawa_r": "1e6"}),
     "c2f_levels": ("1", {"nd": "4"}),

@@ -78,7 +78,8 @@ def results_untouched():
                                          ("validate.py", "--out"),
                                          ("validate_block.py", "--out"),
                                          ("validate_incline.py", "--out"),
-                                         ("element.py", "--out")])
+                                         ("element.py", "--out"),
+                                         ("estimate.py", "--out-dir")])
 def test_smoke_needs_an_output_place(name, option):
     """--smoke never falls back on runs/results/ or runs/out/."""
     _, err = script(name, "--smoke", rc=2)
@@ -270,6 +271,18 @@ def test_validate_incline(tmp_path):
     for mode in ("faithful", "fast"):                         # the turned beam: R u
         row, = table_rows(md, mode)
         assert float(row[2]) < 1e-6
+
+
+def test_estimate(tmp_path):
+    """The error estimate's effectivity table at its smallest (q1, Nd = 16, one rank): the
+    true errors come from the report's continuum values, not from the estimate."""
+    script("estimate.py", "--smoke", "--out-dir", tmp_path)
+    md = read(tmp_path / "estimate.md")
+    rows = table_rows(md, "q1")
+    assert {r[4] for r in rows} == {"max_displacement", "normal_force", "energy"}
+    for r in rows:
+        assert 0.5 <= float(r[8]) <= 3.0 and r[10] == "yes", r
+    assert "Outside the band: none." in md
 
 
 def test_petsc_gpu_script():

@@ -1,0 +1,95 @@
+"""The discretisation error of a run, estimated from its own mesh hierarchy.
+
+The coarse-to-fine start solves the scene on Nd/4, Nd/2, ... before Nd (problem.py); each
+level records the quantities a user reads (QUANTITIES: max |u|, the contact force's normal
+and tangential resultants, the energy J). In the asymptotic range q(h) = q* + C h^p, h =
+1/Nd, and three levels give q*, p and C (generalised Richardson extrapolation,
+contact/validation/convergence.py): the estimated error of this run's value is |q(Nd) - q*|
+and the extrapolated value q* is printed beside it; with four levels or more, the
+extrapolation from the next triple gives q*'s own error estimate (their difference).
+Where the levels are not in the asymptotic range (the differences change sign or do not
+shrink, or the observed order lies outside ORDERS for the element) the estimate says so in
+words instead of a number. The coarse levels are solved to COARSE_RTOL (-newton_rtol of
+the coarse levels when the estimate is on): the Newton iteration converges quadratically
+there, so its error is orders below the level differences used (runs/results/estimate.md
+records both).
+"""
+import math
+
+from . import residuals as res, stress
+from .validation import convergence
+
+#: summary.json key -> words
+QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",
+              "tangential_force": "contact force T", "energy": "energy J"}
+#: observed orders accepted as asymptotic, per element (h = 1/Nd; q2's Nd counts its
+#: elements): outside, the estimate is not given
+ORDERS = {"q1": (0.5, 4.0), "bbar": (0.5, 4.0), "q2": (0.5, 6.0), "q2p1": (0.5, 6.0)}
+#: the coarse levels' -newton_rtol when the estimate is on
+COARSE_RTOL = 1e-10
+
+
+def quantities(problem):
+    """QUANTITIES of a solved problem (the contact force from its contact state)."""
+    comm = problem.comm.tompi4py()
+    out = {"max_displacement": res.max_displacement(comm, problem.displacement()),
+           "energy": res.energy(problem), "normal_force": None, "tangential_force": None}
+    if problem.cs is not None and problem.cs.size:
+        r = stress.resultants(comm, stress.contact_state(problem), problem.normal)
+        out["normal_force"], out["tangential_force"] = r["normal"], r["tangential"]
+    return out
+
+
+def from_levels(levels, element):
+    """The estimate (a dict per quantity, JSON-ready) from levels [(nd, quantities), ...],
+    coarse to fine, the last this run's; None with fewer than three levels."""
+    if len(levels) < 3:
+        return None
+    nds = [nd for nd, _ in levels]
+    lo, hi = ORDERS.get(element, (0.5, 4.0))
+    out = {}
+    for key in QUANTITIES:
+        vals = [q.get(key) for _, q in levels]
+        if any(v is None for v in vals):
+            continue
+        fine = vals[-1]
+        r = convergence.richardson([1.0 / n for n in nds[-3:]], vals[-3:])
+        entry = {"value": fine, "levels": dict(zip(map(str, nds), vals))}
+        if r is None or not lo <= r[1] <= hi:
+            d1, d2 = vals[-3] - vals[-2], vals[-2] - vals[-1]
+            why = ("the differences between levels change sign" if d1 * d2 <= 0 else
+                   "the differences do not shrink" if r is None else
+                   f"observed order {r[1]:.2f} outside {lo:g} to {hi:g} for {element}")
+            entry.update(error=None, order=None, extrapolated=None,
+                         note=f"not in the asymptotic range: {why} (Nd = "
+                              f"{', '.join(map(str, nds[-3:]))})")
+            out[key] = entry
+            continue
+        qstar, p, _ = r
+        entry.update(error=abs(fine - qstar), order=p, extrapolated=qstar,
+                     extrapolated_error=None, note=None)
+        if len(levels) >= 4:
+            r2 = convergence.richardson([1.0 / n for n in nds[-4:-1]], vals[-4:-1])
+            if r2 is not None:
+                entry["extrapolated_error"] = abs(qstar - r2[0])
+        out[key] = entry
+    return out
+
+
+def lines(est, nds):
+    """Console lines of an estimate (summary's `error_estimate`)."""
+    if est is None:
+        return []
+    out = [f"error estimate (discretisation, from this run's levels Nd = "
+           f"{', '.join(map(str, nds))}):"]
+    for key, words in QUANTITIES.items():
+        e = est.get(key)
+        if e is None:
+            continue
+        if e["error"] is None:
+            out.append(f"  {words:16s} {e['value']:.6e}  {e['note']}")
+            continue
+        rel = e["error"] / abs(e["extrapolated"]) if e["extrapolated"] else math.inf
+        out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e} ({100 * rel:.2g} %), "
+                   f"order {e['order']:.2f}; extrapolated {e['extrapolated']:.6e}")
+    return out
