@@ -1,4 +1,5 @@
 """Command line: python -m contact [options]; -help lists them (contact/options.py)."""
+import copy
 import os
 import re
 import signal
@@ -44,20 +45,91 @@ def run(comm=None):
     skipped = _size_check(comm, sc)
     if formats:
         output.prepare_dir(comm.tompi4py(), outdir)
-    problem = ContactProblem(sc, comm)
-    problem.skipped += skipped
-    problem.solve()
-    if len(formats) < len(output.FORMATS):
-        problem.skipped.append("output files " + ", ".join(
-            f for f in output.FORMATS if f not in formats) + " (-output_formats)")
-    s = report.summary(problem, time.perf_counter() - t0)
+    target = options.get("error_target")
+    if target:
+        problem, s, failure = _solve_to_target(comm, sc, target, t0, skipped, formats)
+    else:
+        problem, failure = ContactProblem(sc, comm), None
+        problem.skipped += skipped
+        problem.solve()
+        _skipped_formats(problem, formats)
+        s = report.summary(problem, time.perf_counter() - t0)
     stage = PETSc.Log.Stage("Output")
     stage.push()
     output.write_results(problem, outdir, s, formats)
     stage.pop()
     report.print_summary(comm, s, outdir if formats else None)
     options.warn_unused(comm)
+    if failure:
+        raise TargetNotReached(failure)
     return s
+
+
+class TargetNotReached(ValueError):
+    """-error_target stopped before its target (the last run's results are written)."""
+
+
+#: -error_quantity -> estimate.QUANTITIES key
+TARGET_KEYS = {"energy": "energy", "force": "normal_force", "max_u": "max_displacement"}
+
+
+def _skipped_formats(problem, formats):
+    if len(formats) < len(output.FORMATS):
+        problem.skipped.append("output files " + ", ".join(
+            f for f in output.FORMATS if f not in formats) + " (-output_formats)")
+
+
+def _solve_to_target(comm, sc, target, t0, skipped, formats):
+    """-error_target: solve at Nd, 2 Nd, 4 Nd, ... (each run's coarse-to-fine start solves
+    its coarser levels first) until the estimated relative error of -error_quantity is at
+    most `target`. Returns (last problem, its summary with `error_target`, the reason it
+    stopped short or None)."""
+    quantity = options.get("error_quantity")
+    if quantity not in TARGET_KEYS:
+        raise ValueError(f"-error_quantity must be one of {', '.join(TARGET_KEYS)}, got "
+                         f"{quantity!r}")
+    if not (0.0 < target < 1.0) or sc["mesh"].get("type", "box") != "box":
+        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box mesh (Nd doubles), got "
+                         f"{target:g} and a {sc['mesh'].get('type')} mesh")
+    key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
+    history, failure = [], None
+    while True:
+        problem = ContactProblem(copy.deepcopy(sc), comm)
+        problem.skipped += skipped
+        problem.solve()
+        _skipped_formats(problem, formats)
+        s = report.summary(problem, time.perf_counter() - t0)
+        e = (s["error_estimate"] or {}).get(key)
+        rel = e["error"] / abs(e["extrapolated"]) if e and e["error"] is not None and \
+            e["extrapolated"] else None
+        history.append({"nd": problem.nd, "dofs": s["dofs"], "time_s": s["time_s"]["total"],
+                        "value": e["value"] if e else None, "relative_error": rel})
+        PETSc.Sys.Print(f"error target: Nd = {problem.nd:4d}, {s['dofs']:>10,} dofs, "
+                        f"{s['time_s']['total']:8.2f} s so far: {quantity} "
+                        + (f"{rel:.2e} (target {target:g})" if rel is not None else
+                           (e["note"] if e else s["error_estimate_note"])), comm=comm)
+        if rel is not None and rel <= target:
+            break
+        if e is not None and e["error"] is None:
+            failure = f"{quantity} {e['note']}"
+            break
+        if e is None and (s["load_steps"] > 1 or options.get("c2f_levels", sc) == 0):
+            failure = s["error_estimate_note"]       # no levels to estimate from, ever
+            break
+        nxt = resources.dofs(dict(sc, mesh=dict(sc["mesh"], nd=2 * problem.nd)),
+                             problem.element)
+        if nxt > limit:
+            failure = (f"the next run (Nd = {2 * problem.nd}, {nxt:,} dofs) exceeds "
+                       f"-error_max_dofs {limit:,}; reached {quantity} "
+                       + (f"{rel:.2e}" if rel is not None else "unestimated"))
+            break
+        sc["mesh"]["nd"] = 2 * problem.nd
+        del problem
+    s["error_target"] = {"target": target, "quantity": quantity, "reached": failure is None,
+                         "reason": failure, "runs": history}
+    if failure:
+        failure = f"-error_target {target:g} not reached: {failure}"
+    return problem, s, failure
 
 
 def _size_check(comm, sc):
@@ -95,7 +167,7 @@ def main(argv=None):
     try:
         run(comm)
     except (scenes.SceneError, MeshError, ConvergenceError, ResidualCheckError, OSError,
-            ValueError) as e:
+            ValueError) as e:                   # (TargetNotReached: results written)
         if debug:
             raise
         _error(comm, str(e))          # leave together: mpirun kills the rest at the first exit

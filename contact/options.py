@@ -93,6 +93,14 @@ REGISTRY = [
            "the contact force and the energy from the run's own coarse-to-fine levels "
            "(Richardson; three levels or more; their Newton iterations then go to "
            "-newton_rtol 1e-10)", "BOOL"),
+    Option("error_target", 0.0, float, "refine by doubling Nd (box meshes), each run started "
+           "from its coarser levels, until the estimated relative error of "
+           "-error_quantity is <= TOL; prints error against run time as it goes; stops "
+           "with a named reason at -error_max_dofs or where the levels are not asymptotic "
+           "(then exit status 1, the last run's results written); 0: off", "TOL"),
+    Option("error_quantity", "energy", str, "the quantity -error_target bounds",
+           "energy|force|max_u"),
+    Option("error_max_dofs", 20_000_000, int, "-error_target: no run with more dofs", "N"),
     Option("memory_check", True, bool, "before the mesh: estimate the peak memory per rank "
            "(runs/results/bench-memory.md) and stop, saying how many ranks would fit, where "
            "it exceeds what the ranks can have; 0: go on anyway", "BOOL"),

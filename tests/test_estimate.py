@@ -6,7 +6,7 @@ import os
 import sys
 
 import pytest
-from conftest import ROOT, paper_scene, solve
+from conftest import ROOT, paper_scene, skip_in_parallel, solve
 
 from contact import estimate, options, report
 
@@ -68,3 +68,57 @@ def test_no_estimate_says_why():
         s = report.summary(pr, 0.0)
     assert s["error_estimate"] is None and "-error_estimate 0" in s["error_estimate_note"]
     assert all("quantities" not in r for r in pr.coarse_runs)
+
+
+# -------------------------------------------------------------------- -error_target
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+ENV.pop("OMPI_COMM_WORLD_SIZE", None)
+
+
+def _cli(args, ranks=1):
+    import subprocess
+    cmd = [sys.executable, "-m", "contact"] + [str(a) for a in args]
+    if ranks > 1:
+        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
+    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=300)
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_error_target_doubles_nd_until_met(tmp_path, ranks):
+    """-nd 4 -error_target 1e-2 -error_quantity force: Nd 4 and 8 have no estimate (fewer
+    than three levels), Nd 16 is estimated at 0.26 %: stop there. The true error at Nd 16
+    (against the report's continuum N) is within the target too."""
+    import json
+    p = _cli(["-nd", 4, "-error_target", 1e-2, "-error_quantity", "force", "-output_dir",
+              tmp_path, "-output_formats", "json"], ranks)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.count("error target: Nd =") == 3
+    with open(tmp_path / "summary.json") as f:
+        s = json.load(f)
+    t = s["error_target"]
+    assert t["reached"] and [r["nd"] for r in t["runs"]] == [4, 8, 16] and s["nd"] == 16
+    assert t["runs"][-1]["relative_error"] <= 1e-2
+    q, _ = script.continuum_values()["normal_force"]
+    assert abs(s["contact_result"]["normal"] - q) / abs(q) <= 1e-2
+
+
+@skip_in_parallel
+def test_error_target_stops_with_a_reason(tmp_path):
+    """At -error_max_dofs: one line naming it, exit status 1, the last run's results
+    written (complete); bad values: one line before any mesh."""
+    import json
+    p = _cli(["-nd", 8, "-error_target", 1e-5, "-error_max_dofs", 50000, "-output_dir",
+              tmp_path, "-output_formats", "json"])
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 1 and len(lines) == 1, p.stderr
+    assert "-error_target 1e-05 not reached: the next run (Nd = 32" in lines[0]
+    with open(tmp_path / "summary.json") as f:
+        s = json.load(f)
+    assert s["nd"] == 16 and not s["error_target"]["reached"]
+    for bad, words in ((["-error_quantity", "stress"], "-error_quantity must be"),
+                       (["-error_target", 2], "0 < TOL < 1")):
+        p = _cli(["-nd", 4, "-error_target", 1e-2, *bad, "-output_dir", tmp_path / "x"])
+        assert p.returncode == 1 and words in p.stderr and \
+            len(p.stderr.strip().splitlines()) == 1, p.stderr
