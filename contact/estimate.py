@@ -16,7 +16,9 @@ records both).
 """
 import math
 
-from . import residuals as res, stress
+import numpy as np
+
+from . import fem, residuals as res, stress
 from .validation import convergence
 
 #: summary.json key -> words
@@ -27,6 +29,55 @@ QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",
 ORDERS = {"q1": (0.5, 4.0), "bbar": (0.5, 4.0), "q2": (0.5, 6.0), "q2p1": (0.5, 6.0)}
 #: the coarse levels' -newton_rtol when the estimate is on
 COARSE_RTOL = 1e-10
+
+
+def cell_indicator(problem, x0):
+    """Where the error lives: eta_K = ||u_h - P u_2h||_a on each local output cell K, the
+    energy norm (the cell's stiffness K_e) of the difference between this run's solution
+    and the coarse level's prolonged to this mesh (x0, the coarse-to-fine start): the part
+    of the solution the last refinement changed, large where the coarse mesh resolved
+    least (at singularities: the clamped edge, the contact front). Cells are the output
+    mesh's hexahedra: q1 and bbar their own elements (exact element energy); q2 and q2p1
+    the octants of their elements, with the trilinear interpolant of the difference (an
+    indicator, not the element's own energy). Returns (eta (nc,), sqrt(sum eta^2) over
+    ranks, the same norm of u itself)."""
+    d, d0 = problem.displacement(problem.x), problem.displacement(x0)
+    u = stress.local_values(problem.dm, d.getArray(readonly=True).reshape(-1, 3))
+    e = u - stress.local_values(problem.dm, d0.getArray(readonly=True).reshape(-1, 3))
+    for v, x in ((d, problem.x), (d0, x0)):
+        if v is not x:                  # (x itself where there is no u_D and no frame)
+            v.destroy()
+    conn, coords = problem.conn, problem.coords
+    mat = problem.scene["material"]
+    lam, mu = fem.lame(mat["young"], mat["poisson"])
+    kind = "bbar" if problem.element == "bbar" else "q1"
+    eta, norm = np.zeros(conn.shape[0]), np.zeros(conn.shape[0])
+    for a in range(0, conn.shape[0], fem.CHUNK):
+        c = conn[a:a + fem.CHUNK]
+        K = fem.element_stiffness(coords[c], lam, mu, kind)
+        for out, v in ((eta, e), (norm, u)):
+            w = v[c].reshape(c.shape[0], -1)
+            out[a:a + fem.CHUNK] = np.einsum("ci,cij,cj->c", w, K, w)
+    comm = problem.comm.tompi4py()
+    tot = comm.allreduce(np.array([eta.sum(), norm.sum()]))
+    return np.sqrt(np.maximum(eta, 0.0)), math.sqrt(max(tot[0], 0.0)), \
+        math.sqrt(max(tot[1], 0.0))
+
+
+def indicator_summary(problem):
+    """summary.json's `error_indicator`: the total, relative to ||u||_a, and the largest
+    cell's value and centroid; None without a coarse level."""
+    eta = getattr(problem, "error_indicator", None)
+    if eta is None:
+        return None
+    cells, total, unorm = eta
+    cen = problem.coords[problem.conn].mean(axis=1) if problem.conn.shape[0] else \
+        np.zeros((0, 3))
+    value, where = stress.peak(problem.comm.tompi4py(), cells, cen)
+    return {"energy_norm": total, "relative": total / unorm if unorm > 0 else None,
+            "max": {"value": value if np.isfinite(value) else None, "location": where},
+            "of": "||u_h - P u_2h||_a per cell: the change of the last refinement "
+                  "(contact/estimate.py)"}
 
 
 def quantities(problem):

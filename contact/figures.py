@@ -10,6 +10,8 @@ surface, gathered for them; nothing of the volume).
   contact_displacement.png  |u_tau| and -u_nu = u . n on the contact face
   body_von_mises.png        the deformed body (displacement magnified, the factor in the
                             title) coloured by the von Mises stress of its cells
+  body_error_indicator.png  the same body coloured by the error indicator of its cells
+                            (contact/estimate.py), where the run has a coarse level
   load_path.png             quasi-static runs: normal and tangential resultants and the
                             stick / slip areas against the load parameter t
 The contact face is drawn in the foundation's plane (coordinates along t1, t2 of
@@ -269,9 +271,25 @@ def _nice(x):
 
 
 def body_von_mises(data, path):
+    peak = data.get("von_mises_max") or {}
+    return _body(data, path, data["surface"]["von_mises"], "turbo",
+                 "von Mises stress (cell mean) [stress]", "von Mises stress", peak)
+
+
+def body_error_indicator(data, path):
+    info = data.get("error_indicator") or {}
+    return _body(data, path, data["surface"]["error_indicator"], "magma",
+                 "||u_h - P u_2h||_a on the cell [energy^1/2]",
+                 f"where the error lives (the last refinement's change; relative "
+                 f"{100 * (info.get('relative') or 0.0):.2g} % of ||u||_a)",
+                 info.get("max") or {})
+
+
+def _body(data, path, vm, cmap, label, what, peak):
+    """The deformed body's surface coloured by a cell field vm (f,)."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     s = data["surface"]
-    X, U, vm = s["X"], s["U"], s["von_mises"]
+    X, U = s["X"], s["U"]
     pts = X.reshape(-1, 3)
     size = np.linalg.norm(np.ptp(pts, axis=0))
     umax = np.linalg.norm(U.reshape(-1, 3), axis=1).max() if U.size else 0.0
@@ -282,7 +300,7 @@ def body_von_mises(data, path):
     cax = fig.add_axes([0.86, 0.18, 0.018, 0.55])
     norm = plt.Normalize(vmin=float(vm.min()) if vm.size else 0.0,
                          vmax=float(vm.max()) if vm.size else 1.0)
-    cmap = plt.get_cmap("turbo")
+    cmap = plt.get_cmap(cmap)
     coll = Poly3DCollection(Y, facecolors=cmap(norm(vm)), edgecolor=(0, 0, 0, 0.25),
                             linewidth=0.2)
     ax.add_collection3d(coll)
@@ -306,15 +324,14 @@ def body_von_mises(data, path):
     ax.set_ylabel("y")
     ax.set_zlabel("z")
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, cax=cax, label="von Mises stress (cell mean) [stress]")
-    peak = data.get("von_mises_max") or {}
+    fig.colorbar(sm, cax=cax, label=label)
     where = peak.get("location")
     loc = (f"; max {peak['value']:.4g} at ({', '.join(f'{c:.3g}' for c in where)})"
            if where else "")
     ax.set_title(f"deformed body, displacement magnified x {scale:g} (max |u| = "
                  f"{umax:.3g}){loc}\ndashed: the undeformed bounding box; {UNITS}",
                  fontsize=9)
-    _title(fig, data, "von Mises stress")
+    _title(fig, data, what)
     _save(fig, path)
     return scale
 
@@ -364,6 +381,10 @@ def write_all(data, outdir, target=lambda p: p):
     if data["surface"]["X"].shape[0]:
         scale = body_von_mises(data, target(os.path.join(outdir, "body_von_mises.png")))
         names.append("body_von_mises.png")
+        if data["surface"].get("error_indicator") is not None:
+            body_error_indicator(data, target(os.path.join(outdir,
+                                                           "body_error_indicator.png")))
+            names.append("body_error_indicator.png")
     if len(data["steps"]) > 1:
         load_path(data, target(os.path.join(outdir, "load_path.png")))
         names.append("load_path.png")

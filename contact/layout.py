@@ -144,8 +144,10 @@ def surface(problem, body, u=None):
     else:
         once = np.zeros(0, dtype=np.intp)
     f = faces[once]
+    ind = problem.error_indicator[0] if problem.error_indicator is not None else None
     parts = [_gatherv(comm, a) for a in (keys[once], coords[f], ul[f],
                                          body["cell_von_mises"][cell[once]])]
+    eta = _gatherv(comm, ind[cell[once]]) if ind is not None else None
     if comm.rank:
         return None
     K, X, U, vm = parts
@@ -153,7 +155,9 @@ def surface(problem, body, u=None):
         _, inv, count = np.unique(K, axis=0, return_inverse=True, return_counts=True)
         keep = count[inv.ravel()] == 1
         X, U, vm = X[keep], U[keep], vm[keep]
-    return {"X": X.reshape(-1, 4, 3), "U": U.reshape(-1, 4, 3), "von_mises": vm}
+        eta = eta[keep] if eta is not None else None
+    return {"X": X.reshape(-1, 4, 3), "U": U.reshape(-1, 4, 3), "von_mises": vm,
+            "error_indicator": eta}
 
 
 def figure_data(problem, summary):
@@ -178,5 +182,6 @@ def figure_data(problem, summary):
             "friction": problem.scene.get("contact", {}).get("friction", 0.0),
             "surface": surf, "contact": contact, "contact_faces": faces,
             "von_mises_max": summary.get("von_mises_max"),
+            "error_indicator": summary.get("error_indicator"),
             "contact_result": summary.get("contact_result"),
             "steps": [{"t": s["t"], **s["resultant"]} for s in steps]}

@@ -52,7 +52,11 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
               help="von Mises of `cell_stress`"),
         Field("cell_pressure", "cells/pressure", 1, "Cell",
               help="p = -tr(`cell_stress`) / 3: bbar's cell pressure -kappa div_e u, q2p1's "
-                   "projected pressure's mean over the cell"))
+                   "projected pressure's mean over the cell"),
+        Field("cell_error_indicator", "cells/error_indicator", 1, "Cell",
+              help="||u_h - P u_2h||_a on the cell: where the last refinement changed the "
+                   "solution, i.e. where the error lives (contact/estimate.py); NaN where "
+                   "there is no coarse level (one mesh level, load increments)"))
 #: the contact nodes' fields (stress.contact_state)
 CONTACT = (Field("pressure", "contact/pressure", 1, "Node",
                  help="g = -sigma_nu >= 0, the loops' multiplier l"),
@@ -222,13 +226,16 @@ def _view_int(viewer, path, values, comm, bs=1):
     _view(viewer, path, iset)
 
 
-def _body_values(body, u):
-    """Owned node / local cell arrays of the BODY fields."""
+def _body_values(body, u, indicator=None):
+    """Owned node / local cell arrays of the BODY fields (indicator: the local cells'
+    error indicator, or None: NaN)."""
     un = u.getArray(readonly=True).reshape(-1, 3)
+    nc = body["cell"].shape[0]
     return {"displacement": un, "displacement_magnitude": np.linalg.norm(un, axis=1),
             "stress": body["nodal"], "von_mises": body["nodal_von_mises"],
             "cell_stress": body["cell"], "cell_von_mises": body["cell_von_mises"],
-            "cell_pressure": -body["cell"][:, :3].sum(axis=1) / 3.0}
+            "cell_pressure": -body["cell"][:, :3].sum(axis=1) / 3.0,
+            "cell_error_indicator": np.full(nc, np.nan) if indicator is None else indicator}
 
 
 def write_hdf5(path, problem, layout, written):
@@ -261,7 +268,9 @@ def write_hdf5(path, problem, layout, written):
             elif u is not None:
                 body = stress.body_stress(problem, u)
             if u is not None:
-                vals = _body_values(body, u)
+                ind = problem.error_indicator[0] if final and problem.error_indicator \
+                    is not None else None
+                vals = _body_values(body, u, ind)
                 for f in BODY:
                     order = L.nodes if f.center == "Node" else L.cells
                     src = u if f.name == "displacement" else order.source_vec(vals[f.name],

@@ -41,6 +41,9 @@ class ContactProblem:
         self.scene, self.comm = scene, comm or PETSc.COMM_WORLD
         self.c2f_levels = c2f_levels
         self.coarse_runs = []
+        #: estimate.cell_indicator: (eta per local cell, its total, ||u||_a), or None
+        self.error_indicator = None
+        self._prolonged = None                # P u_2h while the fine level solves
         self.solver_mode = "newton"       # -solver_mode (read when the loops are built)
         self.mode = None                  # linear | frictionless | coulomb
         self.loops = None                 # driver.Loops of the last static solve
@@ -73,6 +76,11 @@ class ContactProblem:
         stage.push()
         try:
             driver.solve(self, ContactProblem._coarse_start)
+            x0 = getattr(self, "_prolonged", None)
+            if x0 is not None:
+                self.error_indicator = estimate.cell_indicator(self, x0)
+                x0.destroy()
+                self._prolonged = None
         finally:
             stage.pop()
         self.time_solve = time.perf_counter() - t0
@@ -126,6 +134,8 @@ class ContactProblem:
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
+        if estimating:
+            self._prolonged = self.x.copy()          # P u_2h: estimate.cell_indicator
         l0, g0 = self.cs.vec(), self.cs.vec()
         transfer.prolong_contact(P, coarse, self, coarse.l, l0)
         if coarse.g is not None:

@@ -22,6 +22,7 @@ def summary(problem, time_total):
     """The dictionary written to summary.json (keys documented in the README)."""
     s = _summary(problem, time_total)
     s["error_estimate"], s["error_estimate_note"] = _estimate(problem, s)
+    s["error_indicator"] = estimate.indicator_summary(problem)
     return s
 
 
