@@ -54,10 +54,16 @@ def cell_indicator(problem, x0):
     eta, norm = np.zeros(conn.shape[0]), np.zeros(conn.shape[0])
     for a in range(0, conn.shape[0], fem.CHUNK):
         c = conn[a:a + fem.CHUNK]
-        K = fem.element_stiffness(coords[c], lam, mu, kind)
+        K, shape = fem.element_stiffness_shapes(coords[c], lam, mu, kind)
         for out, v in ((eta, e), (norm, u)):
             w = v[c].reshape(c.shape[0], -1)
-            out[a:a + fem.CHUNK] = np.einsum("ci,cij,cj->c", w, K, w)
+            if shape is None:                       # a matrix per cell
+                out[a:a + fem.CHUNK] = np.einsum("ci,cij,cj->c", w, K, w)
+                continue
+            part = out[a:a + fem.CHUNK]
+            for s in range(K.shape[0]):             # one product per distinct cell shape
+                i = np.flatnonzero(shape == s)
+                part[i] = np.einsum("ci,ci->c", w[i] @ K[s], w[i])
     comm = problem.comm.tompi4py()
     tot = comm.allreduce(np.array([eta.sum(), norm.sum()]))
     return np.sqrt(np.maximum(eta, 0.0)), math.sqrt(max(tot[0], 0.0)), \

@@ -168,6 +168,14 @@ def element_stiffness(X, lam, mu, element="q1"):
     taken relative to their first vertex, agree to 1e-12 of the largest cell extent share
     one K_e, computed once (a box mesh has one shape; an unstructured mesh pays only a
     sort)."""
+    K, inverse = element_stiffness_shapes(X, lam, mu, element)
+    return K if inverse is None else K[inverse]
+
+
+def element_stiffness_shapes(X, lam, mu, element="q1"):
+    """(K, inverse): the element matrices of the distinct cell shapes among X and each
+    cell's shape (element_stiffness is K[inverse]); inverse None: one K per cell (fewer
+    than two cells per shape)."""
     if X.shape[0] > 1:
         rel = X - X[:, :1, :]
         scale = np.abs(rel).max()
@@ -175,8 +183,8 @@ def element_stiffness(X, lam, mu, element="q1"):
             key = np.round(rel.reshape(X.shape[0], -1) * (1e12 / scale))
             _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
             if first.size < X.shape[0] // 2:
-                return _element_stiffness(rel[first], lam, mu, element)[inverse.ravel()]
-    return _element_stiffness(X, lam, mu, element)
+                return _element_stiffness(rel[first], lam, mu, element), inverse.ravel()
+    return _element_stiffness(X, lam, mu, element), None
 
 
 def _element_stiffness(X, lam, mu, element):

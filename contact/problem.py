@@ -134,7 +134,7 @@ class ContactProblem:
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
-        if estimating:
+        if estimating and self.level == len(h.levels) - 1:
             self._prolonged = self.x.copy()          # P u_2h: estimate.cell_indicator
         l0, g0 = self.cs.vec(), self.cs.vec()
         transfer.prolong_contact(P, coarse, self, coarse.l, l0)
