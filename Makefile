@@ -113,12 +113,14 @@ test4: install
 	mpirun -n 4 --oversubscribe $(PY) -m mpi4py -m pytest -q -p no:cacheprovider $(TESTS4)
 
 # The current PETSc release (CPU build): PETSc + mpi4py + petsc4py from PyPI's source
-# distributions by runs/petsc_gpu.sh --cpu against Debian's Open MPI, into CURRENT_PREFIX
-# (built once per machine, about 25 minutes on 2 cores; reused when present), then a focused
-# part of the suite on it, on 1 and 2 ranks: the code that differs between 3.18 and 3.26
-# (contact/petsc_compat.py) and every solver path.
+# distributions by runs/petsc_gpu.sh --cpu against Debian's Open MPI and HDF5, into
+# CURRENT_PREFIX (built once per machine, about 15 minutes on 2 cores; reused when present),
+# then a focused part of the suite on it, on 1 and 2 ranks: the code that differs between
+# 3.18 and 3.26 (contact/petsc_compat.py) and every solver path.
 CURRENT_DIST   ?= .gpu/dist
 CURRENT_PREFIX ?= .gpu/cpu-prefix
+#: Debian's parallel HDF5 (Open MPI): solution.h5 is written through PETSc's HDF5 viewer
+CURRENT_HDF5   ?= /usr/lib/x86_64-linux-gnu/hdf5/openmpi
 PY_TARGET       = $(shell $(SYSPY) -c 'import sys; print("%d.%d" % sys.version_info[:2])')
 TESTS_CURRENT  ?= tests/test_expression.py tests/test_mesh.py tests/test_transfer.py \
 	tests/test_multigrid.py tests/test_mixed.py tests/test_jacobian.py tests/test_coulomb.py \
@@ -129,11 +131,12 @@ TESTS_CURRENT2 ?= tests/test_ranks.py tests/test_multigrid.py tests/test_mixed.p
 .PHONY: test-current petsc-current
 
 petsc-current: install
-	@$(call apt_ensure,libopenmpi-dev)
+	@$(call apt_ensure,libopenmpi-dev libhdf5-openmpi-dev)
 	@test -f $(CURRENT_PREFIX)/env.sh || { \
 	  PYTHON=$(SYSPY) PY_TARGET=$(PY_TARGET) runs/petsc_gpu.sh fetch $(CURRENT_DIST) && \
-	  PYTHON=$(SYSPY) PY_TARGET=$(PY_TARGET) runs/petsc_gpu.sh build $(CURRENT_DIST) \
-	    $(CURRENT_PREFIX) --cpu --mpi system; }
+	  PETSC_CONFIGURE_EXTRA="--with-hdf5-dir=$(CURRENT_HDF5)" PYTHON=$(SYSPY) \
+	  PY_TARGET=$(PY_TARGET) runs/petsc_gpu.sh build $(CURRENT_DIST) $(CURRENT_PREFIX) \
+	    --cpu --mpi system; }
 
 test-current: petsc-current
 	. $(CURRENT_PREFIX)/env.sh && $(PY) -c 'import petsc4py; print("PETSc", petsc4py.__version__)'
