@@ -5,8 +5,10 @@ parallel.
            mesh.distribute), then refined k times in parallel (DMPlex regular refinement:
            each hexahedron into 8, on the rank that owns it); the levels Nd0, 2 Nd0, ...,
            Nd are the coarse-to-fine start's meshes (none is rebuilt from scratch)
-    gmsh   the file as gmsh meshes it (its own Nd), read on rank 0 and distributed: one level
-    file   a mesh file PETSc reads, as read: one level
+    gmsh   the file as gmsh meshes it (its own Nd), read on rank 0 and distributed: one level,
+           or K + 1 with -mesh_refine K (refined K times in parallel: Nd, 2 Nd, ..., the
+           coarse-to-fine start's and the error estimate's levels)
+    file   a mesh file PETSc reads, as read: one level (K + 1 with -mesh_refine K)
 The q2 element (fem.py) lives on two levels: its elements are the cells of one level, its
 nodes the vertices of the next (the element's 27 nodes: its 8 refined cells' vertices).
 A q2 hierarchy (quadratic=True) is built for the node mesh, Nd_nodes = 2 Nd, so its finest
@@ -100,8 +102,8 @@ class MeshHierarchy:
                             max(c2f_levels, 0) + up)
             nd0 = (nd << up) >> k
             dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
-        else:
-            k, nd0 = up, nd
+        else:                  # -mesh_refine K: the file's mesh refined K times (levels)
+            k, nd0 = up + max(refine, 0), nd
             if self.kind == "gmsh":
                 from . import gmshio                     # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
@@ -143,8 +145,13 @@ class MeshHierarchy:
         """One line: how the mesh was made (for the console and summary.json)."""
         nd0 = self.levels[0].nd
         if self.kind != "box":
+            r = self.refinements - int(self.quadratic)
             return (f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
-                    + (", refined once in parallel (q2 nodes)" if self.refinements else ""))
+                    + (f", refined {r} time{'s' if r > 1 else ''} in parallel (-mesh_refine:"
+                       f" levels Nd = {', '.join(str(lv.nd) for lv in self.levels)})"
+                       if r else "")
+                    + (", refined once more in parallel (q2 nodes)" if self.quadratic
+                       else ""))
         if self.refinements == 0:
             return (f"box built whole on rank 0 at Nd = {nd0}, distributed "
                     f"({self.partitioner})")

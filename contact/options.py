@@ -115,7 +115,9 @@ REGISTRY = [
     Option("mesh_refine", -1, int, "box meshes: build the box at Nd/2^K on rank 0, "
            "distribute it, refine it K times in parallel (Nd a multiple of 2^K); -1: "
            "automatic, the largest K leaving >= 16 coarse cells per rank (an odd Nd: K = 0, "
-           "the whole box through rank 0)", "K"),
+           "the whole box through rank 0); gmsh and mesh files: refine the file's mesh K "
+           "times in parallel (levels Nd, 2 Nd, ..., 2^K Nd: with -c2f_levels K, the error "
+           "estimate's; -1 and 0: as read)", "K"),
     Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
     Option("debug", False, bool, "show the traceback of an error", ""),
     Option("help", None, bool, "this list", ""),

@@ -35,12 +35,16 @@ def _estimate(problem, s):
             "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
     levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
     est = estimate.from_levels(levels + [(problem.nd, this)], problem.element)
+    if est is not None and "energy" in est and getattr(problem.disc, "u_D", None) is not None:
+        est["energy"].update(error=None, order=None, extrapolated=None, note=(
+            "not estimated: with prescribed displacements J is that of u - u_D, without "
+            "the energy of the lifting u_D, which depends on the mesh"))
     if est is not None:
         return est, (f"discretisation error from the levels Nd = "
                      f"{', '.join(str(n) for n, _ in levels + [(problem.nd, None)])}")
     why = ("load increments (no coarse-to-fine start)" if s["load_steps"] > 1 else
            f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
-           "of 2, Nd >= 16; -c2f_levels; a mesh file has one)")
+           "of 2, Nd >= 16; -c2f_levels; a mesh file has one: -mesh_refine 2 -c2f_levels 2)")
     return None, f"no estimate: {why}"
 
 

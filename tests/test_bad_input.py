@@ -265,3 +265,31 @@ def test_interrupt_under_mpirun_leaves_no_output(tmp_path):
     assert rc != 0
     assert "Traceback" not in err
     assert not os.path.isdir(out) or not os.listdir(out)
+
+
+@skip_in_parallel
+def test_refined_file_mesh_solves_like_the_box(tmp_path):
+    """-mesh_refine 2 on a gmsh file of the unit cube in 2^3 cells gives the answer of the
+    box of 8^3 cells (the same mesh, built another way), with three levels to estimate
+    from (the default solver, -c2f_levels 2)."""
+    import json
+    outs = []
+    for mesh in (_msh(tmp_path), None):
+        edit = None if mesh else _set({"type": "box", "lower": [0.0, 0.0, 0.0],
+                                       "upper": [1.0, 1.0, 1.0], "cells_per_nd": [1, 1, 1],
+                                       "nd": 8}, "mesh")
+        out = str(tmp_path / ("file" if mesh else "box"))
+        sc = scene_file(tmp_path, edit, mesh=mesh or _msh(tmp_path))
+        p = _cli(["-scene", sc, "-output_dir", out, "-solver_mode", "newton",
+                  "-newton_rtol", "1e-12"] + (["-mesh_refine", "2", "-c2f_levels", "2"]
+                                              if mesh else []))
+        assert p.returncode == 0, p.stderr
+        import h5py
+        with h5py.File(os.path.join(out, "solution.h5")) as f:
+            outs.append(f["/fields/displacement"][()])
+        with open(os.path.join(out, "summary.json")) as f:
+            s = json.load(f)
+        if mesh:
+            assert s["mesh_levels"] == [1, 2, 4] and s["dofs"] == 3 * 9 ** 3
+            assert s["error_estimate"] is not None, s["error_estimate_note"]
+    assert np.abs(outs[0] - outs[1]).max() <= 1e-8 * np.abs(outs[1]).max()

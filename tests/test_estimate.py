@@ -163,3 +163,15 @@ def test_indicator_points_at_the_clamped_edge():
     assert ind is not None and 0.0 < ind["relative"] < 1.0
     assert ind["max"]["location"][0] < 3.0 / 16        # in the first cell layer at x = 0
     assert pr.error_indicator[0].shape == (pr.conn.shape[0],)
+
+
+def test_energy_with_prescribed_displacements_is_not_estimated():
+    """The clamped face pushed down by 1e-5: J is that of u - u_D, whose lifting's energy
+    grows as the mesh refines; the estimate says so instead of a number (the contact
+    force is still estimated)."""
+    sc = paper_scene(nd=16, mode="newton")
+    sc["boundary"]["clamped"]["displacement"] = [0.0, 0.0, -1e-5]
+    pr = solve(sc)
+    est = report.summary(pr, 0.0)["error_estimate"]
+    assert est["energy"]["error"] is None and "lifting" in est["energy"]["note"]
+    assert est["normal_force"]["error"] is not None
