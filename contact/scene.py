@@ -20,8 +20,10 @@ from .fem import ELEMENTS
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
 
-DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                             "runs", "paper_beam.yaml")
+#: the paper's beam, shipped with the package (runs/paper_beam.yaml links to it), so an
+#: installed contact-solve has its default scene outside the source tree
+DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
+                             "paper_beam.yaml")
 
 PART_TYPES = ("dirichlet", "contact", "traction", "symmetry")
 MESH_TYPES = ("box", "file", "gmsh")
