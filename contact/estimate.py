@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from . import fem, residuals as res, stress
+from . import fem, options, residuals as res, stress
 from .validation import convergence
 
 #: summary.json key -> words
@@ -131,6 +131,32 @@ def from_levels(levels, element):
                 entry["extrapolated_error"] = abs(qstar - r2[0])
         out[key] = entry
     return out
+
+
+#: why the energy is not estimated with prescribed displacements
+LIFTING = ("not estimated: with prescribed displacements J is that of u - u_D, without the "
+           "energy of the lifting u_D, which depends on the mesh")
+
+
+def of_run(problem, s):
+    """(from_levels of the coarse runs and this run, words) for summary.json: this run's
+    QUANTITIES from its summary s (computed there once)."""
+    if not options.get("error_estimate"):
+        return None, "no estimate: -error_estimate 0"
+    cr = s["contact_result"] or {}
+    this = {"max_displacement": s["max_displacement"], "energy": s["energy"],
+            "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
+    levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
+    est = from_levels(levels + [(problem.nd, this)], problem.element)
+    if est is not None and "energy" in est and getattr(problem.disc, "u_D", None) is not None:
+        est["energy"].update(error=None, order=None, extrapolated=None, note=LIFTING)
+    if est is not None:
+        return est, (f"discretisation error from the levels Nd = "
+                     f"{', '.join(str(n) for n, _ in levels + [(problem.nd, None)])}")
+    why = ("load increments (no coarse-to-fine start)" if s["load_steps"] > 1 else
+           f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
+           "of 2, Nd >= 16; -c2f_levels; a mesh file has one: -mesh_refine 2 -c2f_levels 2)")
+    return None, f"no estimate: {why}"
 
 
 def lines(est, nds):

@@ -4,7 +4,7 @@ import resource
 import petsc4py
 from petsc4py import PETSc
 
-from . import estimate, options, residuals as res, stress
+from . import estimate, residuals as res, stress
 from .loop import CONVERGED_ROUNDOFF
 
 
@@ -21,31 +21,9 @@ def _tolerances(problem):
 def summary(problem, time_total):
     """The dictionary written to summary.json (keys documented in the README)."""
     s = _summary(problem, time_total)
-    s["error_estimate"], s["error_estimate_note"] = _estimate(problem, s)
+    s["error_estimate"], s["error_estimate_note"] = estimate.of_run(problem, s)
     s["error_indicator"] = estimate.indicator_summary(problem)
     return s
-
-
-def _estimate(problem, s):
-    """(estimate.from_levels of the coarse runs and this run, words) for summary.json."""
-    if not options.get("error_estimate"):
-        return None, "no estimate: -error_estimate 0"
-    cr = s["contact_result"] or {}
-    this = {"max_displacement": s["max_displacement"], "energy": s["energy"],
-            "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
-    levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
-    est = estimate.from_levels(levels + [(problem.nd, this)], problem.element)
-    if est is not None and "energy" in est and getattr(problem.disc, "u_D", None) is not None:
-        est["energy"].update(error=None, order=None, extrapolated=None, note=(
-            "not estimated: with prescribed displacements J is that of u - u_D, without "
-            "the energy of the lifting u_D, which depends on the mesh"))
-    if est is not None:
-        return est, (f"discretisation error from the levels Nd = "
-                     f"{', '.join(str(n) for n, _ in levels + [(problem.nd, None)])}")
-    why = ("load increments (no coarse-to-fine start)" if s["load_steps"] > 1 else
-           f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
-           "of 2, Nd >= 16; -c2f_levels; a mesh file has one: -mesh_refine 2 -c2f_levels 2)")
-    return None, f"no estimate: {why}"
 
 
 def _summary(problem, time_total):

@@ -95,6 +95,22 @@ def clean_options():
 
 
 skip_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial-only test")
+
+#: the environment of a command-line run started by a test (as root, Open MPI needs the
+#: first two; the test's own mpirun rank must not leak into the child)
+CLI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+CLI_ENV.pop("OMPI_COMM_WORLD_SIZE", None)
+
+
+def cli(args, ranks=1, timeout=120, **kw):
+    """`python -m contact args` (under `mpirun -q -n ranks` for ranks > 1), from the
+    repository root; returns the CompletedProcess (text output captured)."""
+    import subprocess
+    cmd = [sys.executable, "-m", "contact"] + [str(a) for a in args]
+    if ranks > 1:
+        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
+    return subprocess.run(cmd, cwd=ROOT, env=CLI_ENV, capture_output=True, text=True,
+                          timeout=timeout, **kw)
 #: a direct solver this PETSc has: MUMPS (Debian's PETSc), else SuperLU_dist, else PETSc's
 #: own LU (serial only: a PETSc built by runs/petsc_gpu.sh has no external solver)
 DIRECT = next((p for p in ("mumps", "superlu_dist") if PETSc.Sys.hasExternalPackage(p)),

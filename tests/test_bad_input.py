@@ -9,10 +9,8 @@ import time
 import numpy as np
 import pytest
 import yaml
-from conftest import PAPER, ROOT, skip_in_parallel
+from conftest import CLI_ENV, PAPER, ROOT, cli, skip_in_parallel
 
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-ENV.pop("OMPI_COMM_WORLD_SIZE", None)
 
 
 def write_box_msh(path, n=2, invert=None, tet=None):
@@ -63,12 +61,7 @@ def scene_file(tmp_path, edit=None, mesh=None):
     return str(path)
 
 
-def _cli(args, ranks=1, timeout=120):
-    cmd = [sys.executable, "-m", "contact"] + args
-    if ranks > 1:
-        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
-                          timeout=timeout)
+_cli = cli
 
 
 def _msh(tmp_path, **kw):
@@ -215,23 +208,33 @@ def test_debug_shows_the_traceback(tmp_path):
     assert p.returncode != 0 and "Traceback" in p.stderr and "SceneError" in p.stderr
 
 
-@skip_in_parallel
-def test_file_mesh_solves_like_the_box(tmp_path):
-    """A gmsh file of the unit cube gives the answer of the same box mesh."""
-    outs = []
+def _file_and_box(tmp_path, box_nd, opts, file_opts=()):
+    """The unit cube as a gmsh file of 2^3 cells (run with file_opts) and as the box of
+    box_nd^3 cells, each run with opts: [(displacement of solution.h5, summary)]."""
+    import json
+    import h5py
+    out = []
     for mesh in (_msh(tmp_path), None):
         edit = None if mesh else _set({"type": "box", "lower": [0.0, 0.0, 0.0],
                                        "upper": [1.0, 1.0, 1.0], "cells_per_nd": [1, 1, 1],
-                                       "nd": 2}, "mesh")
-        out = str(tmp_path / ("file" if mesh else "box"))
+                                       "nd": box_nd}, "mesh")
+        d = str(tmp_path / ("file" if mesh else "box"))
         sc = scene_file(tmp_path, edit, mesh=mesh or _msh(tmp_path))
-        p = _cli(["-scene", sc, "-output_dir", out, "-apg_rtol", "1e-12",
-                  "-uzawa_rtol", "1e-10", "-fp_rtol", "1e-10"])
+        p = _cli(["-scene", sc, "-output_dir", d] + opts + (list(file_opts) if mesh else []))
         assert p.returncode == 0, p.stderr
-        import h5py
-        with h5py.File(os.path.join(out, "solution.h5")) as f:
-            outs.append(f["/fields/displacement"][()])
-    assert np.abs(outs[0] - outs[1]).max() <= 1e-9 * np.abs(outs[1]).max()
+        with h5py.File(os.path.join(d, "solution.h5")) as f:
+            u = f["/fields/displacement"][()]
+        with open(os.path.join(d, "summary.json")) as f:
+            out.append((u, json.load(f)))
+    return out
+
+
+@skip_in_parallel
+def test_file_mesh_solves_like_the_box(tmp_path):
+    """A gmsh file of the unit cube gives the answer of the same box mesh."""
+    (uf, _), (ub, _) = _file_and_box(tmp_path, 2, ["-apg_rtol", "1e-12", "-uzawa_rtol",
+                                                   "1e-10", "-fp_rtol", "1e-10"])
+    assert np.abs(uf - ub).max() <= 1e-9 * np.abs(ub).max()
 
 
 def _interrupt(tmp_path, sig, ranks=1, after=4.0):
@@ -240,7 +243,7 @@ def _interrupt(tmp_path, sig, ranks=1, after=4.0):
            "-output_dir", out]                        # the paper's loops: long enough
     if ranks > 1:
         cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
-    p = subprocess.Popen(cmd, cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
+    p = subprocess.Popen(cmd, cwd=ROOT, env=CLI_ENV, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True,
                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(after)
@@ -272,24 +275,9 @@ def test_refined_file_mesh_solves_like_the_box(tmp_path):
     """-mesh_refine 2 on a gmsh file of the unit cube in 2^3 cells gives the answer of the
     box of 8^3 cells (the same mesh, built another way), with three levels to estimate
     from (the default solver, -c2f_levels 2)."""
-    import json
-    outs = []
-    for mesh in (_msh(tmp_path), None):
-        edit = None if mesh else _set({"type": "box", "lower": [0.0, 0.0, 0.0],
-                                       "upper": [1.0, 1.0, 1.0], "cells_per_nd": [1, 1, 1],
-                                       "nd": 8}, "mesh")
-        out = str(tmp_path / ("file" if mesh else "box"))
-        sc = scene_file(tmp_path, edit, mesh=mesh or _msh(tmp_path))
-        p = _cli(["-scene", sc, "-output_dir", out, "-solver_mode", "newton",
-                  "-newton_rtol", "1e-12"] + (["-mesh_refine", "2", "-c2f_levels", "2"]
-                                              if mesh else []))
-        assert p.returncode == 0, p.stderr
-        import h5py
-        with h5py.File(os.path.join(out, "solution.h5")) as f:
-            outs.append(f["/fields/displacement"][()])
-        with open(os.path.join(out, "summary.json")) as f:
-            s = json.load(f)
-        if mesh:
-            assert s["mesh_levels"] == [1, 2, 4] and s["dofs"] == 3 * 9 ** 3
-            assert s["error_estimate"] is not None, s["error_estimate_note"]
-    assert np.abs(outs[0] - outs[1]).max() <= 1e-8 * np.abs(outs[1]).max()
+    (uf, s), (ub, _) = _file_and_box(tmp_path, 8, ["-solver_mode", "newton",
+                                                   "-newton_rtol", "1e-12"],
+                                     ["-mesh_refine", "2", "-c2f_levels", "2"])
+    assert s["mesh_levels"] == [1, 2, 4] and s["dofs"] == 3 * 9 ** 3
+    assert s["error_estimate"] is not None, s["error_estimate_note"]
+    assert np.abs(uf - ub).max() <= 1e-8 * np.abs(ub).max()

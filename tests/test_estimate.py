@@ -6,7 +6,7 @@ import os
 import sys
 
 import pytest
-from conftest import ROOT, paper_scene, skip_in_parallel, solve
+from conftest import ROOT, cli, paper_scene, skip_in_parallel, solve
 
 from contact import estimate, options, report
 
@@ -71,17 +71,7 @@ def test_no_estimate_says_why():
 
 
 # -------------------------------------------------------------------- -error_target
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-ENV.pop("OMPI_COMM_WORLD_SIZE", None)
-
-
-def _cli(args, ranks=1):
-    import subprocess
-    cmd = [sys.executable, "-m", "contact"] + [str(a) for a in args]
-    if ranks > 1:
-        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
-                          timeout=300)
+_cli = cli
 
 
 @skip_in_parallel

@@ -3,20 +3,16 @@ everything else, the known escapes from an `eval` sandbox and the power bomb amo
 refused before any mesh, from the command line and from a scene file, on 1 and 2 ranks,
 with one line, a non-zero exit, no result file and nothing executed."""
 import os
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 import yaml
-from conftest import PAPER, ROOT, skip_in_parallel
+from conftest import PAPER, ROOT, cli, skip_in_parallel
 
 from contact import expression
 from contact.expression import ExpressionError
 
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-ENV.pop("OMPI_COMM_WORLD_SIZE", None)
 
 RNG = np.random.default_rng(7)
 XYZ = RNG.uniform(-0.5, 3.5, size=(200, 3))
@@ -167,13 +163,6 @@ END_TO_END = [
 ]
 
 
-def _run(argv, ranks):
-    cmd = [sys.executable, "-m", "contact"] + argv
-    if ranks > 1:
-        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=60)
-
-
 @skip_in_parallel
 @pytest.mark.parametrize("ranks", [1, 2])
 @pytest.mark.parametrize("source", ["option", "scene"])
@@ -198,7 +187,7 @@ def test_refused_end_to_end(tmp_path, ranks, source, case, key, text, words):
         argv += ["-scene", str(path)]
         where = f"contact.{key} in scene file {path}"
     t0 = time.perf_counter()
-    p = _run(argv, ranks)
+    p = cli(argv, ranks, timeout=60)
     lines = p.stderr.strip().splitlines()
     assert p.returncode != 0, p.stdout[-2000:]
     assert len(lines) == 1 and lines[0].startswith(f"contact: error: {where}: "), p.stderr

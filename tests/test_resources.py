@@ -4,18 +4,14 @@ any mesh, naming the need, what is available and the ranks that would fit; with 
 off, an allocation failure inside PETSc ends in one line too."""
 import os
 import resource
-import subprocess
-import sys
 
 import pytest
-from conftest import ROOT, paper_scene, skip_in_parallel
+from conftest import ROOT, cli, paper_scene, skip_in_parallel
 from petsc4py import PETSc
 
 from contact import resources
 from contact.problem import ContactProblem
 
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-ENV.pop("OMPI_COMM_WORLD_SIZE", None)
 
 
 @pytest.mark.parametrize("element", ["q1", "bbar", "q2", "q2p1"])
@@ -41,16 +37,12 @@ def test_the_model_grows_with_dofs_and_shrinks_with_ranks():
 
 
 def _cli(args, ranks=1, limit_gib=None, timeout=120):
-    cmd = [sys.executable, "-m", "contact"] + args
-    if ranks > 1:
-        cmd = ["mpirun", "-q", "-n", str(ranks), "--oversubscribe"] + cmd
-
+    """conftest.cli under an address-space limit of limit_gib (mpirun's ranks inherit it)."""
     def limit():
         if limit_gib:
             b = int(limit_gib * (1 << 30))
             resource.setrlimit(resource.RLIMIT_AS, (b, b))
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True,
-                          timeout=timeout, preexec_fn=limit)
+    return cli(args, ranks, timeout=timeout, preexec_fn=limit)
 
 
 def _one_line(p, out):
