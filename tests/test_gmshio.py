@@ -11,7 +11,7 @@ from petsc4py import PETSc
 
 pytest.importorskip("gmsh")
 
-from contact import fem, gmshio, mesh  # noqa: E402
+from contact import fem, gmshio, mesh, options  # noqa: E402
 from contact import scene as scenes  # noqa: E402
 from contact.mesh import HEX_REF, MeshError  # noqa: E402
 
@@ -244,3 +244,30 @@ def test_gmsh_scene_two_ranks_equal_one_rank():
     assert np.abs(u_s).max() > 0.01                            # pushed down by 0.04
     assert rel_err(u_p, u_s) < 1e-10
     assert par.normal_force() == pytest.approx(ser.normal_force(), rel=1e-10)
+
+
+@pytest.mark.parametrize("refine", [1, 2])
+def test_refined_file_mesh_keeps_its_physical_surfaces(refine):
+    """-mesh_refine K on a gmsh mesh: on every level each physical group's faces are
+    exactly the cell faces on its plane (found from the coordinates, independently of the
+    labels), not the faces of the children that only inherited a marked cell's bitmask
+    (before the mend, refined contact and Dirichlet parts held faces inside the block)."""
+    from contact.hierarchy import MeshHierarchy
+    L, H = 4.0, 3.0
+    sc = {"mesh": {"type": "gmsh", "file": GRADED, "nd": 1,
+                   "parameters": {"r": 1.5, "H": H}}}
+    planes = {"contact": (2, 0.0), "top": (2, H), "sym_x": (0, 0.0), "sym_y": (1, 0.0),
+              "outer_x": (0, L), "outer_y": (1, L)}
+    with options.inserted({"mesh_refine": str(refine)}):
+        hier = MeshHierarchy(sc, PETSc.COMM_WORLD, c2f_levels=refine)
+    assert len(hier.levels) == refine + 1
+    for j, lv in enumerate(hier.levels):
+        conn, X = mesh.cell_vertices(lv.dm)
+        for name, (axis, value) in planes.items():
+            got = faces_of(lv.dm, conn, name)
+            want = mesh.boundary_faces(conn, X, axis, value)
+            key = lambda f: sorted(map(tuple, np.sort(f, axis=1).tolist()))  # noqa: E731
+            assert key(got) == key(want), (j, name)
+            assert W.allreduce(len(got)) == 4 * 4 ** j, (j, name)   # nd = 1: 2 x 2 faces
+            assert abs(area(got, X) - (L * L if name in ("contact", "top") else L * H)) \
+                < 1e-11
