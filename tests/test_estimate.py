@@ -19,16 +19,18 @@ def _levels(nds, f):
                  "normal_force": None, "tangential_force": None}) for n in nds]
 
 
-@pytest.mark.parametrize("p", [1.0, 1.5, 2.0, 3.0])
-def test_exact_on_a_power_law(p):
-    est = estimate.from_levels(_levels([4, 8, 16], lambda h: 2.0 + 5.0 * h ** p), "q1")
+@pytest.mark.parametrize("p,element", [(1.0, "q1"), (1.5, "q1"), (2.0, "q1"), (2.9, "q1"),
+                                       (4.0, "q2")])
+def test_exact_on_a_power_law(p, element):
+    est = estimate.from_levels(_levels([4, 8, 16], lambda h: 2.0 + 5.0 * h ** p), element)
     e = est["max_displacement"]
     assert e["order"] == pytest.approx(p, rel=1e-9)
     assert e["extrapolated"] == pytest.approx(2.0, rel=1e-12)
     assert e["error"] == pytest.approx(5.0 / 16 ** p, rel=1e-9)
     assert e["extrapolated_error"] is None                     # three levels: no second
     assert "normal_force" not in est                           # no contact value: no entry
-    four = estimate.from_levels(_levels([4, 8, 16, 32], lambda h: 2.0 + 5.0 * h ** p), "q1")
+    four = estimate.from_levels(_levels([4, 8, 16, 32], lambda h: 2.0 + 5.0 * h ** p),
+                                element)
     assert four["energy"]["extrapolated_error"] == pytest.approx(0.0, abs=1e-12)
 
 
@@ -37,9 +39,11 @@ def test_words_outside_the_asymptotic_range():
                                                                0.0625: 1.5}[h]), "q1")
     assert sign["max_displacement"]["error"] is None
     assert "change sign" in sign["max_displacement"]["note"]
-    fast = estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 5), "q1")
-    assert fast["max_displacement"]["error"] is None
-    assert "outside 0.5 to 4" in fast["max_displacement"]["note"]
+    fast = estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.75), "q1")
+    assert fast["max_displacement"]["error"] is None              # Hertz's N at 2, 4, 8
+    assert "order 3.75 outside 0.5 to 3 for q1" in fast["max_displacement"]["note"]
+    assert estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.75),
+                                "q2")["max_displacement"]["error"] is not None
     assert estimate.from_levels(_levels([8, 16], lambda h: h), "q1") is None
 
 
@@ -164,4 +168,18 @@ def test_energy_with_prescribed_displacements_is_not_estimated():
     pr = solve(sc)
     est = report.summary(pr, 0.0)["error_estimate"]
     assert est["energy"]["error"] is None and "lifting" in est["energy"]["note"]
+    assert est["normal_force"]["error"] is not None
+
+
+def test_frictionless_tangential_force_is_not_estimated():
+    """Without friction T is zero and its computed value rounding: no order is read
+    from rounding (the Hertz scene gave "order 0.32" for values of 1e-15); N still is."""
+    sc = paper_scene(nd=16, mode="newton")
+    sc["contact"]["friction"] = 0.0
+    pr = solve(sc)
+    s = report.summary(pr, 0.0)
+    assert s["mode"] == "frictionless"
+    est = s["error_estimate"]
+    assert est["tangential_force"]["error"] is None
+    assert "frictionless" in est["tangential_force"]["note"]
     assert est["normal_force"]["error"] is not None
