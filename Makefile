@@ -87,7 +87,7 @@ endif
 	$(MPIRUN) $(PY) -m contact $(RUN_OPTS) $(ARGS)
 
 # ParaView renders the last run (the newest runs/out/*/solution.xdmf, or VIEW_DIR):
-# contact/pvview.py under pvbatch checks that it finds every field of the XDMF and writes
+# contact/io/pvview.py under pvbatch checks that it finds every field of the XDMF and writes
 # paraview_body.png and paraview_contact.png beside it (offscreen, in Xvfb: a 24-bit
 # screen, and an auth file of our own: xvfb-run's own temporary directory sometimes fails
 # its clean-up, exit status 5, after the work is done).
@@ -99,7 +99,7 @@ view:
 	@test -n "$(VIEW_DIR)" && test -f "$(VIEW_DIR)/solution.xdmf" || \
 	  { echo "make view: no solution.xdmf (make run first, or VIEW_DIR=DIR)"; exit 1; }
 	@auth=$$(mktemp); xvfb-run -a -f $$auth -s "-screen 0 1280x1024x24" \
-	  pvbatch contact/pvview.py $(VIEW_DIR); rc=$$?; rm -f $$auth; exit $$rc
+	  pvbatch contact/io/pvview.py $(VIEW_DIR); rc=$$?; rm -f $$auth; exit $$rc
 
 test: install test1 test2 test4
 

@@ -8,7 +8,7 @@ import petsc4py
 def main(argv=None):
     """Initialise PETSc with the command line, then run (contact/cli.py)."""
     petsc4py.init(sys.argv if argv is None else argv)
-    from contact.cli import main as run               # PETSc's options are set by now
+    from contact.cli import main as run  # PETSc's options are set by now
     return run()
 
 

@@ -8,11 +8,12 @@ import time
 
 from petsc4py import PETSc
 
-from . import options, output, report, resources, scene as scenes
-from .discretisation import element_of
-from .loop import ConvergenceError, ResidualCheckError
-from .mesh import MeshError
-from .problem import ContactProblem
+from contact import options, resources, scene as scenes
+from contact.io import output, report
+from contact.fem.discretisation import element_of
+from contact.solvers.loop import ConvergenceError, ResidualCheckError
+from contact.mesh import MeshError
+from contact.problem import ContactProblem
 
 
 

@@ -17,10 +17,14 @@ import time
 
 from petsc4py import PETSc
 
-from . import admissibility, driver, estimate, fem, options, transfer
-from .apg import APG
-from .discretisation import Discretisation, element_of
-from .hierarchy import MeshHierarchy
+from contact.fem import admissibility
+from contact.solvers import driver
+from contact.analysis import estimate
+from contact import fem, options
+from contact.mesh import transfer
+from contact.solvers.paper.apg import APG
+from contact.fem.discretisation import Discretisation, element_of
+from contact.mesh.hierarchy import MeshHierarchy
 
 #: the discretisation's fields, read through the problem (tests, output, transfer)
 DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic",

@@ -14,8 +14,8 @@ import re
 import yaml
 from petsc4py import PETSc
 
-from . import expression, options
-from .fem import ELEMENTS
+from contact import expression, options
+from contact.fem import ELEMENTS
 
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
@@ -366,7 +366,7 @@ def turned(scene, axis, degrees):
     and Coulomb's law being invariant, its answer is u_turned(R X) = R u(X). Returns the
     validated scene and R."""
     import numpy as np
-    from .frame import rotation
+    from contact.fem.frame import rotation
     sc, R = copy.deepcopy(scene), rotation(axis, degrees)
     if "rotate" in sc["mesh"]:
         raise SceneError("turned: the scene's mesh is already rotated")

@@ -30,7 +30,8 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contact import residuals as res, scene as scenes  # noqa: E402
+from contact.analysis import residuals as res
+from contact import scene as scenes  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.validation import harness  # noqa: E402
 

@@ -184,7 +184,7 @@ def part_floor(args, lines):
         its = s["iterations"]["apg_total"]
         n, nnz = s["dofs"], s["nonzeros"]
         # MatMult (AIJ): values 8 + column index 4 bytes per nonzero, row pointers, x read,
-        # y written; vector passes of the iteration counted from contact/apg.py
+        # y written; vector passes of the iteration counted from contact/solvers/paper/apg.py
         byts = 12 * nnz + 4 * n + 16 * n + vecpasses * 8 * n
         floor = byts / bw
         lines.append(f"| {nd} | {name} | {n} | {nnz} | {its} | {tsec:.2f} | "

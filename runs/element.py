@@ -12,7 +12,7 @@
    python -m contact -nd N -element E`, whole process): max |u|'s error against the
    continuum value of `make report` (runs/results/report/data.json), against time.
 4. The Newton steps' linear solves over nu (Hertz, bbar): the default for nu > 0.4 (GMRES
-   on the mixed u-p system with a Schur fieldsplit, contact/mixed.py) against GMRES +
+   on the mixed u-p system with a Schur fieldsplit, contact/solvers/mixed.py) against GMRES +
    GAMG on the condensed stiffness (-newton_pressure_split off), Newton steps, Krylov
    iterations and time, with q1 at nu = 0.3 (the default there) as the reference.
 5. The quadratic elements on Hertz over nu (nd = 5, --hertz-q2-nd): q2 at nu = 0.3, and
@@ -39,13 +39,13 @@ petsc4py.init(sys.argv[:1])
 
 from petsc4py import PETSc  # noqa: E402
 
-from contact import options, residuals  # noqa: E402
-from contact.loop import ConvergenceError  # noqa: E402
+from contact import options
+from contact.analysis import residuals  # noqa: E402
+from contact.solvers.loop import ConvergenceError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import validate  # noqa: E402
 from contact.validation import convergence, harness, theory as th  # noqa: E402
-from contact.validation.hertz import (R_SPHERE, analyse, approach_correction,  # noqa: E402
-                                      hertz_scene)
+from contact.validation.hertz import R_SPHERE, analyse, approach_correction, hertz_scene
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu",
@@ -278,7 +278,7 @@ def write_rest(sv, nd, qd, qnd, pb):
               "bbar with the default linear solves for nu > 0.4 (`-newton_pressure_split "
               "auto`: GMRES on the mixed u-p system, Schur fieldsplit, one GAMG cycle on "
               "A_g, diagonal pressure Schur complement, restart 100, `-newton_ew_max "
-              "0.01`; contact/mixed.py) against GMRES + GAMG on the condensed stiffness "
+              "0.01`; contact/solvers/mixed.py) against GMRES + GAMG on the condensed stiffness "
               "(`off`, restart 30, `-newton_ew_max 0.1`); q1 at nu = 0.3, the default "
               "there, first. Krylov its: all Newton steps together; ratio: to q1 at "
               "nu = 0.3. Target (issue 23): at most 3x at nu = 0.4999.", "",
@@ -295,8 +295,8 @@ def write_rest(sv, nd, qd, qnd, pb):
         L += ["", f"## The quadratic elements over nu (Hertz, nd = {qnd})", "",
               "q2 (27 nodes, full integration) and q2p1 (its volumetric strain projected on a "
               "linear pressure per element: Q2-P1disc, inf-sup stable), each with its default "
-              "solves (q2p1 above nu = 0.4: the mixed split of contact/mixed.py, four pressure "
-              "rows per element). Ratio: Krylov iterations to q2's at nu = 0.3.", "",
+              "solves (q2p1 above nu = 0.4: the mixed split of contact/solvers/mixed.py, four "
+              "pressure rows per element). Ratio: Krylov iterations to q2's at nu = 0.3.", "",
               "| nu | element | dofs | split | force / Hertz | radius / Hertz | peak / Hertz | "
               "Newton steps | Krylov its | its / q2's at 0.3 | time, s | -newton_rtol |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|"]

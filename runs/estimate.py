@@ -1,4 +1,4 @@
-"""Is the error estimate every run prints (contact/estimate.py) right? Its effectivity,
+"""Is the error estimate every run prints (contact/analysis/estimate.py) right? Its effectivity,
 estimate / true error, on the paper's beam, and what it costs.
 
 Each case is `python -m contact -element E -nd N -output_formats json` on 1 or 2 ranks

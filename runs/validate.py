@@ -29,11 +29,10 @@ from petsc4py import PETSc  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-from contact.loop import ConvergenceError, ResidualCheckError  # noqa: E402
+from contact.solvers.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.validation import harness, theory as th  # noqa: E402
-from contact.validation.hertz import (R_SPHERE, analyse, approach_correction,  # noqa: E402
-                                      hertz_scene)
+from contact.validation.hertz import R_SPHERE, analyse, approach_correction, hertz_scene
 
 OUT = os.path.join(HERE, "results")
 #: (nu, F) of the stick-zone study; (0, 0.2986) is the case with a published c/a (Spence
@@ -322,7 +321,8 @@ def main():
     ap.add_argument("--spence-only", action="store_true",
                     help="only the frictional stick-zone study (use another --out)")
     ap.add_argument("--bem", action="store_true",
-                    help="also run the half-space BEM reference (contact/validation/halfspace_bem.py)")
+                    help="also run the half-space BEM reference "
+                          "(contact/validation/halfspace_bem.py)")
     ap.add_argument("--bem-n", type=int, default=40, help="BEM grid n x n")
     ap.add_argument("--bem-steps", type=int, default=80, help="BEM indentation increments")
     ap.add_argument("--out", default=None,

@@ -26,8 +26,10 @@ petsc4py.init(sys.argv[:1])
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contact import layout, output, residuals as res, scene as scenes  # noqa: E402
-from contact.frame import basis, rotation  # noqa: E402
+from contact.io import layout, output
+from contact.analysis import residuals as res
+from contact import scene as scenes  # noqa: E402
+from contact.fem.frame import basis, rotation  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
 from contact.validation import harness  # noqa: E402
@@ -158,14 +160,14 @@ def main():
           f"Scene `runs/scenes/block_incline.yaml`: unit block ({args.nd}^3 cells, E = 1000, "
           f"nu = 0.3), weight rho g V = 1 along -z, no clamped part, on a rigid plane turned "
           f"by theta about x (mesh.rotate; the foundation's normal (0, -sin, cos) is off the "
-          f"axes, so the contact frame of contact/frame.py is used), F = {F:g}, "
+          f"axes, so the contact frame of contact/fem/frame.py is used), F = {F:g}, "
           f"`-solver_mode fast`. Statics of a rigid block: it stays iff tan(theta) <= F, "
           f"i.e. theta <= {np.degrees(np.arctan(F)):.2f} deg, with N = cos(theta) and a "
           f"friction resultant sin(theta) up the slope. Columns: N / cos(theta) and "
           f"|R_tau| / sin(theta) (R = A u - b on the contact nodes: the foundation's force on "
           f"the body), the angle between R_tau and the up-slope direction, the fraction of "
           f"contact nodes that stick, fixed-point iterations, the largest residual of "
-          f"contact/residuals.py, time.", "",
+          f"contact/analysis/residuals.py, time.", "",
           "| theta, deg | tan(theta) | statics | run | N / cos | R_tau / sin | angle, deg "
           "| stick | FP | residual | s |",
           "|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|"]

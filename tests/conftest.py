@@ -53,7 +53,7 @@ def solve(sc, comm=None):
 
 def gather(problem):
     """Canonical (coordinates, displacement) on every rank."""
-    from contact import layout
+    from contact.io import layout
     res = layout.gather_nodes(problem)
     return problem.comm.tompi4py().bcast(res, root=0)
 
@@ -61,7 +61,7 @@ def gather(problem):
 def fields(problem):
     """Displacement (n, 3) and contact pressure (m,) in canonical order (coordinates), on
     every rank."""
-    from contact.layout import canonical_order
+    from contact.io.layout import canonical_order
     u = gather(problem)[1]
     parts = problem.comm.tompi4py().allgather(
         (np.asarray(problem.cs.coordinates).reshape(-1, 3), problem.cs.local_array(problem.l)))

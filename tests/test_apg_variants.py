@@ -4,9 +4,9 @@ import pytest
 from conftest import gather, paper_scene, rel_err, solve
 from petsc4py import PETSc
 
-from contact import layout, output
-from contact.apg import APG
-from contact.subproblem import Subproblem
+from contact.io import layout, output
+from contact.solvers.paper.apg import APG
+from contact.solvers.paper.subproblem import Subproblem
 from contact.problem import ContactProblem
 
 

@@ -1,4 +1,4 @@
-"""The default solver, the whole-problem semismooth Newton (`contact/coulomb.py`,
+"""The default solver, the whole-problem semismooth Newton (`contact/solvers/coulomb.py`,
 -solver_mode newton), against answers it does not compute itself.
 
 * the independent reference (`contact/validation/independent.py`: its own Q1 problem, solved
@@ -29,7 +29,7 @@ from test_independent_reference import FRICTIONS_BEAM, FRICTIONS_BLOCK, _block, 
     _reference
 
 from contact import options, scene as scenes
-from contact.loop import ConvergenceError
+from contact.solvers.loop import ConvergenceError
 
 #: the loops' reference: fast mode at runs/alart_curnier.py's tolerances (+ ssn_ksp_rtol 1e-12)
 TIGHT_FAST = dict(uzawa_rtol=1e-11, fp_rtol=1e-11, ssn_rtol=1e-13)

@@ -37,12 +37,12 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import contact
-from contact.apg import APG
-from contact.coulomb import CoulombNewton
-from contact.fixedpoint import FixedPoint
-from contact.newton import SemismoothNewton
+from contact.solvers.paper.apg import APG
+from contact.solvers.coulomb import CoulombNewton
+from contact.solvers.paper.fixedpoint import FixedPoint
+from contact.solvers.paper.ssn import SemismoothNewton
 from contact.problem import ContactProblem
-from contact.uzawa import Uzawa
+from contact.solvers.paper.uzawa import Uzawa
 
 #: petsc4py methods that read or write a Vec's/Mat's values through host memory
 HOST_METHODS = frozenset({
@@ -286,7 +286,7 @@ def test_ssn_host_work_per_newton_step(comm):
 
 @pytest.mark.parametrize("storage", ["separate", "inplace"])
 def test_newton_host_work_is_the_contact_rows(comm, storage):
-    """The default solver (contact/coulomb.py): inside its iteration a host array is only
+    """The default solver (contact/solvers/coulomb.py): inside its iteration a host array is only
     ever one of contact space (a Vec of at most 3 x the rank's contact nodes: the contact
     rows' values, kilobytes), and a Mat's values only D's (K - A in the contact rows) with
     -newton_jacobian separate (the GPU's), or also K's own contact rows in place: never a

@@ -1,4 +1,4 @@
-"""The elements (-element, contact/fem.py ELEMENTS): q1, the paper's, and bbar (B-bar:
+"""The elements (-element, contact/fem/ ELEMENTS): q1, the paper's, and bbar (B-bar:
 the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
 
 * the package's element matrices against the independent reference's (contact/validation/
@@ -9,7 +9,7 @@ the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
   space, and the patch test (a linear field is exact) on distorted cells at nu = 0.4999;
 * the package against the reference solving whole contact scenes with bbar (the beam
   frictionless and at F = 0.3, the block with a varying F), nu = 0.3 and 0.4999 (there
-  with the default linear solves, contact/mixed.py, and with exact ones), on any number
+  with the default linear solves, contact/solvers/mixed.py, and with exact ones), on any number
   of ranks;
 * a closed form at nu = 0.4999: the frictionless block pressed on the foundation, uniaxial
   stress, u = p/E (nu x, nu y, -z) and pressure p at every contact node;
@@ -22,14 +22,15 @@ from test_independent_reference import (TOL, _compare, _distorted, _reference, _
                                        check_pressed_block, pressed_block)
 
 from contact import fem, options
-from contact.discretisation import element_of
+from contact.fem.discretisation import element_of
+from contact.mesh import HEX_REF
 from contact.scene import SceneError
 from contact.validation import independent as ind
 
 
 #: the reference's local corner q = qx + 2 qy + 4 qz at (2 qx - 1, 2 qy - 1, 2 qz - 1), in
 #: the package's corner order (mesh.HEX_REF)
-PERM = [int(((c + 1) / 2) @ [1, 2, 4]) for c in fem.HEX_REF]
+PERM = [int(((c + 1) / 2) @ [1, 2, 4]) for c in HEX_REF]
 
 
 @pytest.mark.parametrize("nu", [0.3, 0.4999])
@@ -100,7 +101,7 @@ def test_bbar_patch_test_on_distorted_cells(nu):
 LU = {"newton_ksp_type": "preonly", "newton_pc_type": "lu",
       "newton_pc_factor_mat_solver_type": DIRECT}
 #: the Newton steps' linear solves at nu = 0.4999: the default ones (GMRES on the mixed
-#: u-p system, contact/mixed.py) and exact ones
+#: u-p system, contact/solvers/mixed.py) and exact ones
 SOLVES = {"default": {}, "lu": LU}
 #: solver settings tight enough that the comparison sees the discretisation only
 TIGHT_NEWTON = dict(mode="newton")
@@ -145,8 +146,8 @@ def test_newton_steps_do_not_grow_with_nu(friction, monkeypatch):
     """Exact Newton steps on the pressed, sheared block: as many at nu = 0.4999 as at 0.3
     (measured 7, 7, 7 and 6, 6, 6); with rho from A's own diagonal (~ lambda: the cap
     off) nu = 0.4999 ends in DIVERGED_MAX_IT."""
-    from contact import discretisation
-    from contact.loop import ConvergenceError
+    from contact.fem import discretisation
+    from contact.solvers.loop import ConvergenceError
     steps = {}
     with options.inserted(LU):
         for nu in (0.3, 0.49, 0.4999):

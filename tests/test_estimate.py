@@ -1,4 +1,4 @@
-"""The error estimate of every run (contact/estimate.py): exact on a quantity that is
+"""The error estimate of every run (contact/analysis/estimate.py): exact on a quantity that is
 q* + C h^p; words, not numbers, outside the asymptotic range; and on the paper's beam its
 effectivity against the continuum values of runs/results/report.md (extrapolated from
 meshes up to 5x finer) inside the issue's band 0.5 to 3, the same on 1 and 2 ranks."""
@@ -8,7 +8,9 @@ import sys
 import pytest
 from conftest import ROOT, cli, paper_scene, skip_in_parallel, solve
 
-from contact import estimate, options, report
+from contact.analysis import estimate
+from contact import options
+from contact.io import report
 
 sys.path.insert(0, os.path.join(ROOT, "runs"))
 import estimate as script  # noqa: E402  (runs/estimate.py: the report's continuum values)

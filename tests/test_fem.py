@@ -84,6 +84,6 @@ def test_element_stiffness_shared_shapes_equal_per_cell(element):
     odd = ref[None] + 0.01 * rng.standard_normal((5, 8, 3))       # five other shapes
     X = np.concatenate([copies, odd])[rng.permutation(45)]
     K = fem.element_stiffness(X, 2.0, 1.0, element)
-    each = np.stack([fem._element_stiffness(X[i:i + 1], 2.0, 1.0, element)[0]
+    each = np.stack([fem.element._element_stiffness(X[i:i + 1], 2.0, 1.0, element)[0]
                      for i in range(45)])
     assert np.abs(K - each).max() < 1e-12 * np.abs(each).max()

@@ -1,4 +1,4 @@
-"""The figures of a run (-output_formats ...,png; contact/figures.py): they exist, are
+"""The figures of a run (-output_formats ...,png; contact/io/figures.py): they exist, are
 PNG images, and are not blank: many distinct colours, and the contact map shows the
 colours of the statuses the solution has. For the paper's beam, a gmsh scene (Hertz) and
 a quasi-static scene (block_shear), on 1 and 2 ranks (rank 0 draws what was gathered)."""
@@ -9,7 +9,8 @@ import pytest
 from conftest import ROOT, paper_scene, solve
 from mpi4py import MPI
 
-from contact import figures, output, report, scene as scenes
+from contact.io import figures, output, report
+from contact import scene as scenes
 
 
 def _scene(name):

@@ -1,4 +1,4 @@
-"""Foundations whose normal is not a coordinate axis (contact/frame.py): the loops solve in
+"""Foundations whose normal is not a coordinate axis (contact/fem/frame.py): the loops solve in
 the basis (t1, t2, n) at the contact nodes.
 
 Checks: the same scene turned as a whole (mesh.rotate, tractions and foundation turned
@@ -16,9 +16,9 @@ from conftest import (block_scene, gather, only_in_parallel, paper_scene, rel_er
                       skip_in_parallel, solve)
 from petsc4py import PETSc
 
-from contact import residuals as res
+from contact.analysis import residuals as res
 from contact import scene as scenes
-from contact.frame import axis_of, basis, rotation
+from contact.fem.frame import axis_of, basis, rotation
 from contact.scene import SceneError
 
 AXIS, DEGREES = [1.0, 2.0, 3.0], 25.0

@@ -1,4 +1,4 @@
-"""gmsh meshes (contact.gmshio.read_gmsh and the .geo files in meshes/): hexahedra in
+"""gmsh meshes (contact.mesh.gmshio.read_gmsh and the .geo files in meshes/): hexahedra in
 PETSc's cone order, physical surfaces as face labels, parameters, errors on all ranks."""
 import copy
 import os
@@ -11,7 +11,8 @@ from petsc4py import PETSc
 
 pytest.importorskip("gmsh")
 
-from contact import fem, gmshio, mesh, options  # noqa: E402
+from contact import fem, mesh, options
+from contact.mesh import gmshio  # noqa: E402
 from contact import scene as scenes  # noqa: E402
 from contact.mesh import HEX_REF, MeshError  # noqa: E402
 
@@ -252,7 +253,7 @@ def test_refined_file_mesh_keeps_its_physical_surfaces(refine):
     exactly the cell faces on its plane (found from the coordinates, independently of the
     labels), not the faces of the children that only inherited a marked cell's bitmask
     (before the mend, refined contact and Dirichlet parts held faces inside the block)."""
-    from contact.hierarchy import MeshHierarchy
+    from contact.mesh.hierarchy import MeshHierarchy
     L, H = 4.0, 3.0
     sc = {"mesh": {"type": "gmsh", "file": GRADED, "nd": 1,
                    "parameters": {"r": 1.5, "H": H}}}

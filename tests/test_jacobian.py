@@ -1,4 +1,4 @@
-"""The default solver's Jacobian (contact/coulomb.py) against finite differences of its own
+"""The default solver's Jacobian (contact/solvers/coulomb.py) against finite differences of its own
 residual, with the contact, stick and slip sets held fixed.
 
 At a point x off the solution (the solution plus a random perturbation, so that inactive,
@@ -25,7 +25,7 @@ from conftest import ROOT, paper_scene
 from petsc4py import PETSc
 
 from contact import scene as scenes
-from contact.coulomb import CoulombNewton
+from contact.solvers.coulomb import CoulombNewton
 from contact.problem import ContactProblem
 
 #: the test's step lengths (relative to the Newton step, which is O(1) of x's distance)

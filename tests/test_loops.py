@@ -4,7 +4,7 @@ from conftest import paper_scene, solve
 from petsc4py import PETSc
 
 from contact import scene as scenes
-from contact.loop import ConvergenceError
+from contact.solvers.loop import ConvergenceError
 from contact.problem import ContactProblem
 
 
@@ -89,7 +89,7 @@ class _Map:
 
 
 def _fixed_point(comm, k, rotate=False, relaxation=None):
-    from contact.fixedpoint import FixedPoint
+    from contact.solvers.paper.fixedpoint import FixedPoint
     m = _Map(comm, k, rotate)
     if relaxation is not None:
         PETSc.Options().setValue("fp_relaxation", str(relaxation))
@@ -137,7 +137,7 @@ def test_nan_in_a_loop_is_named(comm, inner):
 def test_residual_check_catches_a_step_too_short_to_move(comm):
     """r = 1e300: the APG step 1/L vanishes, the change test passes at once, and only the
     a-posteriori check sees that the contact conditions are not met."""
-    from contact.loop import ResidualCheckError
+    from contact.solvers.loop import ResidualCheckError
     with pytest.raises(ResidualCheckError, match="complementarity residual"):
         solve(paper_scene(nd=1, uzawa_r=1e300), comm)
 

@@ -18,8 +18,9 @@ from petsc4py import PETSc
 from test_element import F_VARYING, _bbar_block
 from test_independent_reference import uniaxial
 
-from contact import mixed, options
-from contact.loop import ConvergenceError
+from contact.solvers import mixed
+from contact import options
+from contact.solvers.loop import ConvergenceError
 from contact.problem import ContactProblem
 
 

@@ -1,4 +1,4 @@
-"""Geometric multigrid on the mesh hierarchy (contact/multigrid.py), the linear solves'
+"""Geometric multigrid on the mesh hierarchy (contact/solvers/multigrid.py), the linear solves'
 default preconditioner on a refined mesh: its finest interpolation is the hierarchy's P
 turned into the problem's basis and zero on the clamped rows (checked against the frame's
 own Vec conversion), its CG iteration count does not grow with Nd, it gives GAMG's answer
@@ -12,8 +12,9 @@ from conftest import fields, paper_scene, rel_err, solve
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contact import multigrid, options, scene as scenes
-from contact.coulomb import CoulombNewton
+from contact.solvers import multigrid
+from contact import options, scene as scenes
+from contact.solvers.coulomb import CoulombNewton
 from contact.problem import ContactProblem
 
 

@@ -9,7 +9,7 @@ from contact.validation.socp import solve_coulomb, solve_tresca
 from test_reference import _discrete
 
 from contact import options, scene as scenes
-from contact.loop import ConvergenceError
+from contact.solvers.loop import ConvergenceError
 
 TIGHT = dict(uzawa_r=1e6, ssn_rtol=1e-13, uzawa_rtol=1e-11, fp_rtol=1e-10)
 
@@ -160,7 +160,7 @@ def test_theta_newton_step_where_the_semismooth_direction_ascends():
     and proximal-gradient steps of length 1/(r w) could not move it (DIVERGED_MAX_IT).
     The Newton step of Theta on the stuck nodes' face descends; statics check the answer:
     N = cos(20 deg) and the friction resultant sin(20 deg)."""
-    from contact import residuals as res
+    from contact.analysis import residuals as res
     th, ph = np.radians(20.0), np.radians(10.0)
     sc = block_scene({"contact": {"plane": ["z", 0.0], "type": "contact"}}, nd=4,
                      friction=0.5, mode="fast")

@@ -1,4 +1,4 @@
-"""The default solver's iteration itself (contact/coulomb.py): the first step, the
+"""The default solver's iteration itself (contact/solvers/coulomb.py): the first step, the
 globalisation, the linear solves' options, and A after a solve.
 
 * a body the foundation alone holds across a uniform gap g: the solution is the one without
@@ -31,7 +31,7 @@ from conftest import ROOT, fields, paper_scene, rel_err, skip_in_parallel, solve
 from petsc4py import PETSc
 
 from contact import options, scene as scenes
-from contact.loop import ConvergenceError
+from contact.solvers.loop import ConvergenceError
 
 BLOCK = os.path.join(ROOT, "runs", "scenes", "block_shear.yaml")
 
@@ -237,7 +237,7 @@ def test_load_path_starts_at_the_previous_equilibrium(monkeypatch):
     increment's load b, and du = 0 solves b(0) (the previous increment's equilibrium: the
     Newton residual there is at the level the previous solve converged to), while it is
     far from solving b."""
-    from contact import driver
+    from contact.solvers import driver
     found = []
 
     def residual_at_zero(n, b):

@@ -8,10 +8,10 @@ from conftest import ROOT, paper_scene, solve
 from petsc4py import PETSc
 
 from contact import options
-from contact.apg import APG
-from contact.fixedpoint import FixedPoint
-from contact.newton import SemismoothNewton
-from contact.uzawa import Uzawa
+from contact.solvers.paper.apg import APG
+from contact.solvers.paper.fixedpoint import FixedPoint
+from contact.solvers.paper.ssn import SemismoothNewton
+from contact.solvers.paper.uzawa import Uzawa
 
 
 def test_readme_table_is_the_registry():

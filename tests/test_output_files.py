@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, skip_in_parallel
 
-from contact import output
+from contact.io import output
 
 #: the fast mode at Nd = 2 (189 dofs), well under a second per run; its Newton steps'
 #: linear solves (CG + GAMG) converged to rounding instead of the fast mode's 1e-3, so
@@ -210,7 +210,7 @@ def test_an_interrupted_or_failed_write_leaves_no_file(comm, mpi_tmp_path, monke
     on every rank count (and one clear error on every rank)."""
     from mpi4py import MPI
 
-    from contact import figures, report
+    from contact.io import figures, report
     from conftest import paper_scene, solve
     pr = solve(paper_scene(nd=1, uzawa_r=1e6, mode="fast"), comm)
     s = report.summary(pr, 0.0)

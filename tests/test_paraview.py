@@ -1,4 +1,4 @@
-"""ParaView opens solution.xdmf (contact/pvview.py under pvbatch, as `make view` runs it):
+"""ParaView opens solution.xdmf (contact/io/pvview.py under pvbatch, as `make view` runs it):
 every grid and field the XDMF names is found in what ParaView loaded, and it renders the
 body coloured by von Mises and the contact map. Runs only where ParaView (pvbatch) and
 xvfb-run are installed (`make view` installs them); serial (it launches its own runs)."""
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, skip_in_parallel
 
-from contact import output
+from contact.io import output
 
 pytestmark = [skip_in_parallel,
               pytest.mark.skipif(not (shutil.which("pvbatch") and shutil.which("xvfb-run")),

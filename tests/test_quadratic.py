@@ -1,5 +1,5 @@
-"""The 27-node quadratic hexahedron (-element q2, contact/fem.py; its nodes the refined
-mesh's vertices, contact/hierarchy.py QuadraticCells).
+"""The 27-node quadratic hexahedron (-element q2, contact/fem/; its nodes the refined
+mesh's vertices, contact/mesh/hierarchy.py QuadraticCells).
 
 * its element matrix against the independent reference's (contact/validation/
   independent.py: Voigt B, 1D Lagrange products, leggauss; its own node order);
@@ -22,7 +22,8 @@ from conftest import ROOT, gather, paper_scene, solve
 from test_independent_reference import (TOL, _block, _compare, _reference, _rel,
                                         check_pressed_block, pressed_block)
 
-from contact import fem, stress
+from contact import fem
+from contact.analysis import stress
 from contact.validation import independent as ind
 
 #: the reference's local node q = qx + 3 qy + 9 qz is the package's 9 qx + 3 qy + qz
@@ -234,7 +235,7 @@ def test_bending_stress_is_linear_within_an_element():
 
 def test_turned_beam_gives_the_turned_answer():
     """q2 with the foundation off the axes (the contact nodes' dofs in the frame (t1, t2,
-    n), contact/frame.py, on 27-node element matrices): the beam (N = 1, F = 0.3) turned by
+    n), contact/fem/frame.py, on 27-node element matrices): the beam (N = 1, F = 0.3) turned by
     25 degrees about (1, 2, 3) gives u_turned(R X) = R u(X) and the same normal force."""
     from test_frame import AXIS, DEGREES, matched
 
@@ -365,7 +366,7 @@ def test_q2p1_has_four_constraints_per_element():
 
 @pytest.mark.parametrize("nu", [0.3, 0.4999])
 def test_paper_beam_q2p1_against_reference(nu):
-    """q2p1 with the default solves (nu = 0.4999: the mixed u-p split of contact/mixed.py,
+    """q2p1 with the default solves (nu = 0.4999: the mixed u-p split of contact/solvers/mixed.py,
     four pressure rows per element) against the reference's own B-bar-P1 assembly."""
     sc = paper_scene(nd=1, mode="newton")
     sc["mesh"]["element"] = "q2p1"
@@ -403,7 +404,7 @@ def test_pressed_block_q2p1_nearly_incompressible():
     want = np.array([0, 0, -p, 0, 0, 0], float)
     assert np.abs(body["cell"] - want).max() < 1e-6 * p
     # the pressure field of the outputs (cells/pressure): -tr(sigma) / 3 = p / 3
-    from contact import output
+    from contact.io import output
     cell_p = output._body_values(body, pr.displacement())["cell_pressure"]
     assert pr.comm.tompi4py().allreduce(cell_p.size) > 0
     assert np.all(np.abs(cell_p - p / 3.0) < 1e-6 * p)

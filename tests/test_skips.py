@@ -7,8 +7,9 @@ import sys
 import pytest
 from conftest import ROOT, paper_scene, skip_in_parallel, solve
 
-from contact import output, scene as scenes
-from contact.uzawa import Uzawa
+from contact.io import output
+from contact import scene as scenes
+from contact.solvers.paper.uzawa import Uzawa
 
 PY = sys.executable
 

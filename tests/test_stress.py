@@ -1,4 +1,4 @@
-"""Stress and contact tractions (contact/stress.py) against closed forms, and the
+"""Stress and contact tractions (contact/analysis/stress.py) against closed forms, and the
 resultants against the statics of bodies held only by the foundation."""
 import os
 
@@ -8,7 +8,9 @@ from petsc4py import PETSc
 from test_contact_closed_form import PRESSED
 from test_friction_held import F as F_HELD, P as P_HELD, sheared
 
-from contact import fem, layout, scene as scenes, stress
+from contact import fem, scene as scenes
+from contact.io import layout
+from contact.analysis import stress
 from contact.mesh import HEX_REF
 
 E, NU, P = 1.0e3, 0.3, 2.0

@@ -1,4 +1,5 @@
-"""The Uzawa subproblem (contact/subproblem.py) checked on its own: gradient against finite
+"""The Uzawa subproblem (contact/solvers/paper/subproblem.py) checked on its own: gradient
+against finite
 differences, the cancellation-free change of Theta against Theta differences where those
 resolve it (and against the directional derivative where they do not), prox optimality,
 and APG and semismooth Newton reaching the same minimiser of one subproblem."""
@@ -7,10 +8,10 @@ import pytest
 from conftest import paper_scene, rel_err
 from petsc4py import PETSc
 
-from contact.apg import APG
-from contact.newton import SemismoothNewton
+from contact.solvers.paper.apg import APG
+from contact.solvers.paper.ssn import SemismoothNewton
 from contact.problem import ContactProblem
-from contact.subproblem import Subproblem
+from contact.solvers.paper.subproblem import Subproblem
 
 R = 1e6
 

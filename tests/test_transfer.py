@@ -1,5 +1,5 @@
-"""The mesh hierarchy (contact/hierarchy.py) and the coarse-to-fine transfer on it
-(contact/transfer.py): levels born by parallel refinement are the box meshes built whole,
+"""The mesh hierarchy (contact/mesh/hierarchy.py) and the coarse-to-fine transfer on it
+(contact/mesh/transfer.py): levels born by parallel refinement are the box meshes built whole,
 P reproduces trilinear displacements and bilinear contact fields exactly, and the solve on
 a refined mesh is the solve on the mesh built whole. Runs on 1, 2 and 4 ranks."""
 import numpy as np
@@ -8,8 +8,9 @@ from conftest import gather, paper_scene, rel_err, solve
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contact import options, scene as scenes, transfer
-from contact.hierarchy import MIN_CELLS_PER_RANK, refinements
+from contact import options, scene as scenes
+from contact.mesh import transfer
+from contact.mesh.hierarchy import MIN_CELLS_PER_RANK, refinements
 from contact.problem import ContactProblem
 
 C = np.array([1.0, -2.0, 0.5])

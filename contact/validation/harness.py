@@ -234,7 +234,7 @@ def error_line(stderr, rc):
 
 # -- results ------------------------------------------------------------------------------
 def read_solution(d):
-    """The datasets of DIR/solution.h5 (contact/output.py), nodes in the canonical order:
+    """The datasets of DIR/solution.h5 (contact/io/output.py), nodes in the canonical order:
     xyz (n x 3), cells (hexahedra, VTK order), u (n x 3 displacement); on the contact face
     contact_xyz (m x 3), p (pressure g = -sigma_nu >= 0), slip (|u_tau|), status (0
     separated, 1 stick, 2 slip). A dataset the file lacks is None."""

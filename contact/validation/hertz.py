@@ -15,9 +15,10 @@ import os
 
 import numpy as np
 
-from .. import residuals as res, scene as scenes
-from . import theory as th
-from .harness import ROOT
+from contact.analysis import residuals as res
+from contact import scene as scenes
+from contact.validation import theory as th
+from contact.validation.harness import ROOT
 
 SCENE = os.path.join(ROOT, "runs", "scenes", "hertz.yaml")
 R_SPHERE = 10.0

@@ -50,8 +50,8 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
-from .. import expression      # the scene language only (parsing is not what is checked here)
-from .socp import solve_coulomb, solve_tresca
+from contact import expression  # the scene language only (parsing is not what is checked here)
+from contact.validation.socp import solve_coulomb, solve_tresca
 
 __all__ = ["grid", "grid_q2", "shape_q1", "shape_lagrange", "strain_matrix",
            "p1_bbar_strain_matrix", "stiffness", "hooke", "face_integral", "volume_integral",

@@ -2,7 +2,7 @@
 pressure, fem.PRESSURES): its volumetric stiffness split off into the element pressure,
 so that multigrid sees compressible elasticity.
 
-The stiffness (fem.py) is K = A_g + kappa D^T M^-1 D, where A_g is the stiffness of the
+The stiffness (fem/element.py) is K = A_g + kappa D^T M^-1 D, where A_g is the stiffness of the
 same body with lambda_g = LAMBDA_SPLIT mu, kappa = lambda - lambda_g, D holds the elements'
 divergence moments against their pressure functions and M their mass matrices (bbar: one
 function, 1, D_e = int_e div u, M_e = |e|; q2p1: four, P1). With Gq = M^-1/2 D
@@ -52,7 +52,8 @@ in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth o
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, multigrid, options, petsc_compat
+from contact import fem, options, petsc_compat
+from contact.solvers import multigrid
 
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
 LAMBDA_SPLIT = 4.0

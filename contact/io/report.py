@@ -4,8 +4,8 @@ import resource
 import petsc4py
 from petsc4py import PETSc
 
-from . import estimate, residuals as res, stress
-from .loop import CONVERGED_ROUNDOFF
+from contact.analysis import estimate, residuals as res, stress
+from contact.solvers.loop import CONVERGED_ROUNDOFF
 
 
 def _tolerances(problem):

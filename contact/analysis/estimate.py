@@ -18,8 +18,9 @@ import math
 
 import numpy as np
 
-from . import fem, options, residuals as res, stress
-from .validation import convergence
+from contact import fem, options
+from contact.analysis import residuals as res, stress
+from contact.validation import convergence
 
 #: summary.json key -> words
 QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",
@@ -86,7 +87,7 @@ def indicator_summary(problem):
     return {"energy_norm": total, "relative": total / unorm if unorm > 0 else None,
             "max": {"value": value if np.isfinite(value) else None, "location": where},
             "of": "||u_h - P u_2h||_a per cell: the change of the last refinement "
-                  "(contact/estimate.py)"}
+                  "(contact/analysis/estimate.py)"}
 
 
 def quantities(problem):

@@ -1,7 +1,7 @@
 """Accelerated proximal gradient (FISTA) for the Uzawa subproblem  min_x Theta = G + H.
 
 G, H, grad G, the prox, the Lipschitz bounds and the cancellation-free changes of Theta are
-the subproblem's (contact/subproblem.py); this module holds only the iteration.
+the subproblem's (contact/solvers/paper/subproblem.py); this module holds only the iteration.
 
 Iteration (the paper's, Beck-Teboulle momentum):
     y   = x^(i-1) + (i-2)/(i+1) (x^(i-1) - x^(i-2))
@@ -53,7 +53,7 @@ import math
 
 from petsc4py import PETSc
 
-from .loop import Loop
+from contact.solvers.loop import Loop
 
 _EV_ITER = PETSc.Log.Event("APG iterations")
 
@@ -64,7 +64,7 @@ STEPS = ("fixed", "backtracking")
 
 class APG(Loop):
     """FISTA on the displacement; options prefix ``-apg_``. `solve(sub, x)` minimises the
-    subproblem `sub` (contact/subproblem.py) from x."""
+    subproblem `sub` (contact/solvers/paper/subproblem.py) from x."""
 
     prefix = "apg_"
     name = "apg"

@@ -21,14 +21,14 @@ Its rounding is about 1e-16 of the sum of the terms' magnitudes (`Change.scale`)
 
 The loops set what changes between calls: the load b (`set_load`, per load increment), the
 shifted multiplier l - r gap and the slip bounds lambda (`set_multiplier`, per Uzawa step).
-APG (apg.py) and semismooth Newton (newton.py) only iterate: they call these methods and never
+APG (apg.py) and semismooth Newton (ssn.py) only iterate: they call these methods and never
 write a formula of Theta. Contact-space NumPy views (`contact_arrays`) serve the Newton
 Jacobian; everything else is Vec work (VecScatter to contact space), so it stays on a GPU.
 """
 import numpy as np
 from petsc4py import PETSc
 
-from .contactset import ADD
+from contact.fem.contactset import ADD
 
 _EV_LIP = PETSc.Log.Event("Lipschitz estimate")
 

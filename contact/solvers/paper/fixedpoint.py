@@ -17,7 +17,7 @@ Faithful mode (the paper): each Uzawa run starts from l = 0 and x = 0.
 """
 from petsc4py import PETSc
 
-from .loop import InexactControl, Loop
+from contact.solvers.loop import InexactControl, Loop
 
 DIVERGED_OSCILLATION = "DIVERGED_OSCILLATION"
 DIVERGED_STAGNATION = "DIVERGED_STAGNATION"

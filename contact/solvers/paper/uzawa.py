@@ -3,14 +3,14 @@
 M(v, l) = J_g(v) + 1/(2r) sum_j w_j [((l_j + r (v_nu,j - gap_j))^+)^2 - l_j^2]
     u^{k+1} = argmin_v M(v, l^k)            (inner solver: APG or SSN, from u^k)
     l^{k+1} = (l^k + r (u_nu^{k+1} - gap))^+ ,  u_nu = -u_k (contactset.py)
-Uzawa owns r, the subproblem (contact/subproblem.py) and the multiplier: each step hands
-the subproblem the shifted multiplier l - r gap (gap = 0 for the paper's scene, where
+Uzawa owns r, the subproblem (subproblem.py) and the multiplier: each step hands the
+subproblem the shifted multiplier l - r gap (gap = 0 for the paper's scene, where
 nothing is shifted) and the slip bounds lambda = F g w, and the inner solver minimises it.
 Stop when ||l^{k+1} - l^k|| / ||l^{k+1}|| < rtol (both zero: no contact, converged).
 Options (prefix -uzawa_):
   -uzawa_r R                the parameter r (default 1e8, the paper's)
   -uzawa_inner apg|ssn      inner solver: accelerated proximal gradient (the paper's,
-                            default) or semismooth Newton (contact/newton.py)
+                            default) or semismooth Newton (contact/solvers/paper/ssn.py)
   -uzawa_warm_start <bool>  start the inner solve from u^k (default true, the paper's);
                             false: from 0 every time
   -uzawa_inexact <eta>      inexact inner solves: inner tolerance max(inner rtol,
@@ -19,8 +19,8 @@ Options (prefix -uzawa_):
 """
 from petsc4py import PETSc
 
-from .loop import InexactControl, Loop
-from .subproblem import Subproblem
+from contact.solvers.loop import InexactControl, Loop
+from contact.solvers.paper.subproblem import Subproblem
 
 _EV = PETSc.Log.Event("Uzawa")
 

@@ -13,10 +13,11 @@ vectors, and the solution lives in the problem (problem.py).
 import numpy as np
 from mpi4py import MPI
 
-from . import fem, mesh, mixed, multigrid, options
-from .contactset import ContactSet
-from .frame import ContactFrame, basis
-from .scene import AXES, SceneError, foundation_normal
+from contact import fem, mesh, options
+from contact.solvers import mixed, multigrid
+from contact.fem.contactset import ContactSet
+from contact.fem.frame import ContactFrame, basis
+from contact.scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)
 #: -element auto: q2p1 from this Poisson ratio on (outside -solver_mode faithful). At
@@ -183,7 +184,7 @@ class Discretisation:
         cfaces = [self.parts[n] for n, p in bnd.items() if p["type"] == "contact"]
         self.has_contact_part = bool(cfaces)
         self.normal = foundation_normal(sc)
-        self.cs = self.frame = None              # frame: contact/frame.py (tilted foundation)
+        self.cs = self.frame = None              # frame: contact/fem/frame.py (tilted foundation)
         if not self.has_contact_part:
             return
         con = sc.get("contact", {})
@@ -255,7 +256,7 @@ class Discretisation:
 
     def to_xyz(self, x):
         """x (the loops' basis) in x, y, z components: x itself without a contact frame,
-        else a new Vec (contact/frame.py)."""
+        else a new Vec (contact/fem/frame.py)."""
         return self.frame.to_xyz(x.copy()) if self.frame is not None else x
 
     def displacement(self, x):

@@ -9,7 +9,7 @@ parallel.
            or K + 1 with -mesh_refine K (refined K times in parallel: Nd, 2 Nd, ..., the
            coarse-to-fine start's and the error estimate's levels)
     file   a mesh file PETSc reads, as read: one level (K + 1 with -mesh_refine K)
-The q2 element (fem.py) lives on two levels: its elements are the cells of one level, its
+The q2 element (fem/element.py) lives on two levels: its elements are the cells of one level, its
 nodes the vertices of the next (the element's 27 nodes: its 8 refined cells' vertices).
 A q2 hierarchy (quadratic=True) is built for the node mesh, Nd_nodes = 2 Nd, so its finest
 level is always a refinement (a mesh file is read, distributed and refined once);
@@ -32,8 +32,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import mesh, options, petsc_compat
-from .mesh import HEX_FACES, HEX_REF, MeshError
+from contact import mesh, options, petsc_compat
+from contact.mesh import HEX_FACES, HEX_REF, MeshError
 
 #: the automatic k keeps at least this many coarse cells per rank
 MIN_CELLS_PER_RANK = 16
@@ -105,7 +105,7 @@ class MeshHierarchy:
         else:                  # -mesh_refine K: the file's mesh refined K times (levels)
             k, nd0 = up + max(refine, 0), nd
             if self.kind == "gmsh":
-                from . import gmshio                     # gmsh is imported only here
+                from contact.mesh import gmshio  # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
                 dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
             else:
@@ -370,7 +370,7 @@ class QuadraticCells:
     trilinear map), which must coincide (else MeshError)."""
 
     def __init__(self, coarse, fine):
-        from .fem import Q2_REF, Q2_ROLE
+        from contact.fem import Q2_REF, Q2_ROLE
         ncc, ncf = coarse.conn.shape[0], fine.conn.shape[0]
         if ncf != 8 * ncc:
             raise MeshError(f"level {fine.nd} is not the regular refinement of level "
@@ -410,7 +410,7 @@ class QuadraticCells:
         """The fine quadrilaterals (4 n, 4) (cyclic, local fine vertices) of face k
         (HEX_FACES) of elements `cells` (n,): a gmsh physical group's faces, marked on the
         element mesh, on the node mesh."""
-        from .fem import Q2_REF
+        from contact.fem import Q2_REF
         quads = np.empty((6, 4, 4), dtype=np.intp)         # per face k: 4 quads of positions
         index = {tuple(r): q for q, r in enumerate(Q2_REF.astype(int))}
         for f in range(6):

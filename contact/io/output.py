@@ -4,7 +4,7 @@ solution.h5 is written by all ranks together (PETSc's HDF5 viewer, MPI-IO), each
 own piece of every dataset, nothing gathered: nodes, cells, contact nodes and contact
 faces are put in a canonical order that does not depend on the partition (nodes and
 contact nodes sorted by (z, y, x), cells and faces by their sorted node numbers:
-layout.Layout, a parallel sample sort, contact/canonical.py) and moved there by
+layout.Layout, a parallel sample sort, contact/mesh/canonical.py) and moved there by
 VecScatters, so 1 and 2 ranks write the same datasets. The datasets are listed once, in
 `BODY`, `CONTACT` (and `MESH`): the HDF5 writer, the XDMF description and the README
 follow them.
@@ -24,8 +24,9 @@ from typing import NamedTuple
 import numpy as np
 from petsc4py import PETSc
 
-from . import options, stress
-from .layout import Layout, figure_data, gather_state
+from contact import options
+from contact.analysis import stress
+from contact.io.layout import Layout, figure_data, gather_state
 
 INT = np.dtype(PETSc.IntType)          # integer datasets: PETSc's IS type (int32 here)
 
@@ -55,7 +56,7 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
                    "projected pressure's mean over the cell"),
         Field("cell_error_indicator", "cells/error_indicator", 1, "Cell",
               help="||u_h - P u_2h||_a on the cell: where the last refinement changed the "
-                   "solution, i.e. where the error lives (contact/estimate.py); NaN where "
+                   "solution, i.e. where the error lives (contact/analysis/estimate.py); NaN where "
                    "there is no coarse level (one mesh level, load increments)"))
 #: the contact nodes' fields (stress.contact_state)
 CONTACT = (Field("pressure", "contact/pressure", 1, "Node",
@@ -454,7 +455,7 @@ def write_results(problem, outdir, summary, formats=FORMATS):
                     _write_text(stage.path(paths["xdmf"]),
                                 xdmf_text(NAMES["h5"], sizes, written))
                 if "png" in formats:
-                    from . import figures            # matplotlib only when figures are asked
+                    from contact.io import figures  # matplotlib only when figures are asked
                     figures.write_all(data, outdir, stage.path)
                 if "json" in formats:
                     _write_text(stage.path(os.path.join(outdir, NAMES["json"])),

@@ -1,7 +1,7 @@
 """Open a run's solution.xdmf in ParaView and render it (`make view`; run by ParaView's
 own Python, not imported by the package):
 
-    xvfb-run -a -f AUTHFILE -s "-screen 0 1280x1024x24" pvbatch contact/pvview.py OUTDIR
+    xvfb-run -a -f AUTHFILE -s "-screen 0 1280x1024x24" pvbatch contact/io/pvview.py OUTDIR
 
 (a 24-bit screen: with xvfb-run's default 8-bit one ParaView's window creation fails now
 and then, 1 run in 12 measured; an auth file of our own, -f: xvfb-run's temporary

@@ -3,7 +3,7 @@
 Contact nodes j in P: the vertices of the contact faces whose normal dof is not clamped.
 For each, the lumped weight w_j = int_{Gamma_c} N_j ds over the actual (bilinear) faces,
 so curved and graded faces integrate correctly (on a uniform flat face this is the
-paper's trapezoidal rule; q2: the Gauss-Lobatto weights of the 9-node faces, fem.py),
+paper's trapezoidal rule; q2: the Gauss-Lobatto weights of the 9-node faces, fem/element.py),
 the friction coefficient F_j, the initial gap gap_j, and the dofs of its normal and
 tangential components.
 
@@ -11,7 +11,8 @@ The foundation is the half-space {(X - p) . n <= 0} behind the plane through p w
 normal n (the paper: p = 0, n = e_z). The body's outward normal on the contact is
 nu = -n, so u_nu = u . nu = -u . n. For n = +e_k (k = x, y or z), u . n = u_k and x_tau =
 the two other components; for any other n the contact nodes' dofs are those of the
-basis (t1, t2, n) of contact/frame.py (built by the discretisation from `nodes`), so u . n = u~_3 and x_tau = (u~_1, u~_2).
+basis (t1, t2, n) of contact/fem/frame.py (built by the discretisation from `nodes`),
+so u . n = u~_3 and x_tau = (u~_1, u~_2).
 Non-penetration: u_nu,j <= gap_j, where gap_j = (X_j - p) . n (the distance to the plane)
 or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)).
 In contact space, component 2 is the normal one and 0, 1 are the tangential ones.
@@ -23,8 +24,8 @@ displacement Vec and contact Vecs with VecScatter (so they stay on the device on
 import numpy as np
 from petsc4py import PETSc
 
-from . import expression, fem
-from .frame import axis_of, basis
+from contact import expression, fem
+from contact.fem.frame import axis_of, basis
 
 FORWARD = PETSc.ScatterMode.FORWARD
 REVERSE = PETSc.ScatterMode.REVERSE
@@ -51,7 +52,7 @@ class ContactSet:
         self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
         axis = axis_of(self.normal)
         #: n off the axes: the contact nodes' dofs are those of the basis (t1, t2, n) of
-        #: contact/frame.py, which the discretisation builds from `nodes`
+        #: contact/fem/frame.py, which the discretisation builds from `nodes`
         self.off_axes = axis is None
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
         comps = [c for c in range(3) if c != self.axis] + [self.axis]

@@ -13,17 +13,20 @@ The loops are built for each static solve (`Loops`), under the solver mode's pre
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, multigrid, options, output, residuals as res
-from .apg import APG
-from .coulomb import CoulombNewton
-from .discretisation import DEFAULT_RAMP
-from .fixedpoint import FixedPoint
-from .loop import ResidualCheckError
-from .newton import SemismoothNewton
-from .scene import ramp_factor
-from .uzawa import Uzawa
+from contact import fem, options
+from contact.solvers import multigrid
+from contact.io import output
+from contact.analysis import residuals as res
+from contact.solvers.paper.apg import APG
+from contact.solvers.coulomb import CoulombNewton
+from contact.fem.discretisation import DEFAULT_RAMP
+from contact.solvers.paper.fixedpoint import FixedPoint
+from contact.solvers.loop import ResidualCheckError
+from contact.solvers.paper.ssn import SemismoothNewton
+from contact.scene import ramp_factor
+from contact.solvers.paper.uzawa import Uzawa
 
-#: option presets; "newton" = the whole-problem semismooth Newton (contact/coulomb.py, no
+#: option presets; "newton" = the whole-problem semismooth Newton (contact/solvers/coulomb.py, no
 #: nested loops); "faithful" = the paper's loops; "fast" = the loops with the semismooth
 #: Newton inner solver, warm starts, inexact loops
 SOLVER_MODES = {
@@ -72,7 +75,7 @@ class Loops:
 
 class NewtonLoops:
     """The default mode: one semismooth Newton iteration on the whole Coulomb problem
-    (contact/coulomb.py) in place of the three loops; its multiplier is the reaction."""
+    (contact/solvers/coulomb.py) in place of the three loops; its multiplier is the reaction."""
 
     fp = uzawa = None
 
@@ -251,7 +254,7 @@ def solve_incremental(pr, n):
 def check_solution(pr, b, gap):
     """The loops stop on a small change of their iterate, which a vanishing step also
     gives: check the answer itself. Raises ResidualCheckError when a residual of
-    contact/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
+    contact/analysis/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
     tol = options.get("check_tol", pr.scene)
     pr.residuals = res.residuals(pr, pr.x, b=b, gap=gap)
     worst = max(pr.residuals, key=pr.residuals.get)

@@ -44,8 +44,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import fem, multigrid, options
-from .loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO, Loop, ksp_reason_name
+from contact import fem, options
+from contact.solvers import multigrid
+from contact.solvers.loop import (CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO, Loop,
+                                  ksp_reason_name)
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")

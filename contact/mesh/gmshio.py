@@ -20,7 +20,7 @@ import os
 import numpy as np
 from petsc4py import PETSc
 
-from .mesh import HEX_FACES, MeshError
+from contact.mesh import HEX_FACES, MeshError
 
 #: gmsh's 8-node hexahedron, nodes 0..7 at (-1,-1,-1) (1,-1,-1) (1,1,-1) (-1,1,-1)
 #: (-1,-1,1) (1,-1,1) (1,1,1) (-1,1,1): PETSc's cone position j holds gmsh node GMSH_TO_PETSC[j]
@@ -66,7 +66,7 @@ def _read_rank0(path, parameters, verbose):
     if owner:
         gmsh.initialize(readConfigFiles=False, interruptible=False)
     else:
-        gmsh.model.add("contact.gmshio")
+        gmsh.model.add("contact.mesh.gmshio")
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         for name, value in (parameters or {}).items():

@@ -1,6 +1,6 @@
 """Semismooth Newton (SSN) for the Uzawa subproblem  min_x Theta(x) = G(x) + H(x).
 
-G, H, grad G, the prox and the changes of Theta are the subproblem's (contact/subproblem.py);
+G, H, grad G, the prox and the changes of Theta are the subproblem's (subproblem.py);
 this module holds the Newton iteration and its Jacobian. The minimiser solves the nonsmooth equation
     x = prox_{alpha H}(x - alpha grad G(x))        (alpha_j > 0 per contact node).
 Newton on it with a generalized Jacobian, rows scaled to be symmetric, gives each step
@@ -29,8 +29,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import options
-from .loop import DIVERGED_MAX_IT, Loop, ksp_reason_name
+from contact import options
+from contact.solvers.loop import DIVERGED_MAX_IT, Loop, ksp_reason_name
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
 _EV_KSP = PETSc.Log.Event("SSN linear solve")
@@ -41,7 +41,7 @@ DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 
 class SemismoothNewton(Loop):
     """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``.
-    `solve(sub, x)` minimises the subproblem `sub` (contact/subproblem.py) from x;
+    `solve(sub, x)` minimises the subproblem `sub` (contact/solvers/paper/subproblem.py) from x;
     `clamped` are the eliminated rows of A (diagonal `diag_scale`)."""
 
     prefix = "ssn_"

@@ -14,7 +14,7 @@ import math
 
 from petsc4py import PETSc
 
-from . import options
+from contact import options
 
 
 def ksp_reason_name(ksp):

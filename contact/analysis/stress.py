@@ -9,8 +9,8 @@ order of VTK's symmetric tensors (ParaView names them so): xx, yy, zz, xy, yz, x
              sum_e |e| sigma_e / sum_e |e| over the cells holding the node;
   von Mises  sqrt(((s_xx-s_yy)^2 + (s_yy-s_zz)^2 + (s_zz-s_xx)^2)/2 + 3 (s_xy^2+s_yz^2+s_xz^2))
              of the cell mean (per cell) and of the nodal average (per node).
-Shape-function gradients are fem.py's (`fem._geometry`); all cells at once (NumPy over
-chunks of fem.CHUNK cells). q2 (fem.py): the cells are the refined mesh's, each an eighth
+Shape-function gradients are fem/element.py's (`fem.geometry`); all cells at once (NumPy over
+chunks of fem.CHUNK cells). q2 (fem/element.py): the cells are the refined mesh's, each an eighth
 of a 27-node element; a cell's mean is that of the element's quadratic field over the
 eighth (2x2x2 Gauss points of the eighth, in the element's reference coordinates), so a
 linear stress is reproduced exactly in every eighth's mean; q2p1's volumetric part is its
@@ -35,8 +35,10 @@ import weakref
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, residuals as res
-from .frame import basis
+from contact import fem
+from contact.fem import element
+from contact.analysis import residuals as res
+from contact.fem.frame import basis
 
 #: stress components, in this order (VTK's symmetric tensor order)
 COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
@@ -53,8 +55,8 @@ def von_mises(s):
 
 def _octant_rules():
     """q2: for each eighth o = 4 ox + 2 oy + oz of the reference cube, the rule (dN,
-    dN^T, w) of its 2x2x2 Gauss points for fem._geometry."""
-    g = fem._GP3 / 2.0
+    dN^T, w) of its 2x2x2 Gauss points for fem.geometry."""
+    g = element._GP3 / 2.0
     rules = []
     for o in range(8):
         lo = np.array([o // 4, (o // 2) % 2, o % 2], dtype=float)
@@ -70,9 +72,9 @@ _OCTANTS = _octant_rules()
 def cell_stress(X, U, lam, mu, rule=None, theta=None):
     """Cell-mean Cauchy stress (c, 6) and volumes (c,) of cells X (c, a, 3) with nodal
     displacements U (c, a, 3): the Gauss values (the element's rule, or `rule`: see
-    fem._geometry) averaged with weights |J| w. theta (c,): the cells' mean volumetric
+    fem.geometry) averaged with weights |J| w. theta (c,): the cells' mean volumetric
     strain where an element projects it (q2p1), in place of the mean of tr eps."""
-    dNdx, wdet = fem._geometry(X, rule)
+    dNdx, wdet = fem.geometry(X, rule)
     vol = wdet.sum(axis=1)
     a = X.shape[1]
     g = np.matmul(wdet[:, None, :], dNdx.reshape(X.shape[0], -1, 3 * a)).reshape(-1, a, 3)
@@ -93,11 +95,11 @@ def _projected_theta(coords, ul, conn, m):
     theta = np.zeros((conn.shape[0], 8))
     for a in range(0, conn.shape[0], fem.CHUNK // 8):
         X, U = coords[conn[a:a + fem.CHUNK // 8]], ul[conn[a:a + fem.CHUNK // 8]]
-        dNdx, wdet = fem._geometry(X)
+        dNdx, wdet = fem.geometry(X)
         Dq, Mh = fem.projected_divergence(X, dNdx, wdet, m, with_mass=True)
         coef = np.einsum("cmn,cnak,cak->cm", Mh, Dq, U)          # theta = q . coef
         for o, (rule, points) in enumerate(_OCTANTS):
-            _, w8 = fem._geometry(X, rule)
+            _, w8 = fem.geometry(X, rule)
             q8 = fem.pressure_basis(X, wdet, m, points=points)
             theta[a:a + X.shape[0], o] = np.einsum("cgm,cm,cg->c", q8, coef, w8) / w8.sum(axis=1)
     return theta

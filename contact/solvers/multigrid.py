@@ -4,8 +4,8 @@ The levels of a refined mesh (hierarchy.py) give PCMG what it needs: the Q1 inte
 P_j from level j - 1 to level j (hierarchy.prolongation), and Galerkin coarse operators
 P^T K P, so the coarse levels see whatever the fine operator is: the stiffness A with its
 clamped rows eliminated, or the Newton Jacobian with its contact rows changed
-(contact/coulomb.py). The finest interpolation is turned into the problem's basis (T^T P
-with a contact frame, contact/frame.py) and is zero on the clamped rows (a coarse
+(contact/solvers/coulomb.py). The finest interpolation is turned into the problem's basis (T^T P
+with a contact frame, contact/fem/frame.py) and is zero on the clamped rows (a coarse
 correction never moves a clamped dof).
 
 Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
@@ -36,7 +36,7 @@ solve given -<prefix>pc_type gamg: the options database has the last word.
 import numpy as np
 from petsc4py import PETSc
 
-from . import fem, options, petsc_compat
+from contact import fem, options, petsc_compat
 
 #: the coarsest level is factored (LU) up to this many dofs, else one GAMG cycle solves it.
 #: Hertz (a gmsh coarse level) with q2, 1 rank: nd = 3 (~10,000 coarse dofs) 25 -> 18 s,
@@ -86,7 +86,7 @@ def gpu_vecs():
 
 class Multigrid:
     """The interpolations of PCMG for the problem on level `level` of `hierarchy`:
-    frame (contact/frame.py, or None) and clamped (owned rows in the problem's basis) as
+    frame (contact/fem/frame.py, or None) and clamped (owned rows in the problem's basis) as
     the discretisation's. Mats are built on first use and shared by every solve.
     rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz) for
     a first coarse operator assembled on the level below (the module docstring; prepare);

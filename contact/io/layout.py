@@ -11,9 +11,9 @@ body's surface, small next to the volume.
 """
 import numpy as np
 
-from . import stress
-from .canonical import Order
-from .mesh import HEX_FACES
+from contact.analysis import stress
+from contact.mesh.canonical import Order
+from contact.mesh import HEX_FACES
 
 #: PETSc hexahedron vertex order -> VTK/XDMF hexahedron order
 PETSC_TO_VTK_HEX = np.array([0, 3, 2, 1, 4, 5, 6, 7])

@@ -17,8 +17,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import fem, options
-from .scene import SceneError, ramp_factor
+from contact import fem, options
+from contact.scene import SceneError, ramp_factor
 
 
 def check(disc):

@@ -11,7 +11,7 @@ surface, gathered for them; nothing of the volume).
   body_von_mises.png        the deformed body (displacement magnified, the factor in the
                             title) coloured by the von Mises stress of its cells
   body_error_indicator.png  the same body coloured by the error indicator of its cells
-                            (contact/estimate.py), where the run has a coarse level
+                            (contact/analysis/estimate.py), where the run has a coarse level
   load_path.png             quasi-static runs: normal and tangential resultants and the
                             stick / slip areas against the load parameter t
 The contact face is drawn in the foundation's plane (coordinates along t1, t2 of
@@ -30,7 +30,7 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
-from .frame import basis  # noqa: E402
+from contact.fem.frame import basis  # noqa: E402
 
 STATUS_COLORS = ("#c8c8c8", "#2c7bb6", "#d7191c")       # separated, stick, slip
 STATUS_NAMES = ("separated", "stick", "slip")

@@ -13,7 +13,7 @@ import ctypes
 import numpy as np
 from petsc4py import PETSc
 
-from . import petsc_compat
+from contact import petsc_compat
 
 #: reference coordinates (xi, eta, zeta) of the 8 vertices, in cone order
 HEX_REF = np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, -1], [1, -1, -1],
@@ -263,7 +263,7 @@ def label_parts(dm, parts):
 def labelled_faces(dm, conn, label_name):
     """Faces (nf, 4) local vertex indices, cyclic order, of the local cells marked in the
     cell label `label_name` (value = bitmask, bit k <=> face HEX_FACES[k]; see
-    contact.gmshio). conn rows are the cells cStart..cEnd. With overlap 0 each cell, and so
+    contact.mesh.gmshio). conn rows are the cells cStart..cEnd. With overlap 0 each cell, and so
     each face, is on one rank."""
     cells, k = labelled_cell_faces(dm, label_name)
     if cells.size == 0:
@@ -291,7 +291,7 @@ def labelled_cell_faces(dm, label_name):
 def rotate_coordinates(dm, coords, axis, degrees, origin=(0.0, 0.0, 0.0)):
     """Turn the mesh by `degrees` about the line through `origin` along `axis` (scene
     mesh.rotate): the DM's coordinates and the local array `coords` (returned anew)."""
-    from .frame import rotation
+    from contact.fem.frame import rotation
     R, o = rotation(axis, degrees), np.asarray(origin, dtype=float)
     g = dm.getCoordinates()
     a = g.getArray(readonly=True).reshape(-1, 3)

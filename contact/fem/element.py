@@ -1,0 +1,295 @@
+"""Hexahedral elements for linear elasticity: element matrices, face weights, shapes.
+
+a(u, v) = int_Omega sigma(u) : eps(v) dx, sigma = lambda tr(eps) I + 2 mu eps,
+b(v)    = int_Omega f . v dx + int_Gamma_n p . v ds.
+Element matrices (assembly: contact/fem/assembly.py) use 2x2x2 Gauss points and are
+computed for all cells at once (NumPy
+einsum over chunks of cells); face integrals use 2x2 Gauss points on the bilinear face.
+
+Elements (-element, ELEMENTS):
+  q1    the paper's trilinear hexahedron, full integration. Locks volumetrically as
+        nu -> 0.5: 24 dofs against 8 incompressibility constraints per cell.
+  bbar  the same nodes and shape functions with the volumetric strain replaced by its mean
+        over the cell (B-bar, Hughes 1980):
+          a_e(u, v) = int_e 2 mu dev eps(u) : dev eps(v) dx + kappa |e| div_e(u) div_e(v),
+          div_e(u) = (1/|e|) int_e div u dx,   kappa = lambda + 2 mu / 3,
+        which is the Q1-P0 mixed u-p element (a constant pressure per cell,
+        p = kappa div_e u) with the pressure condensed: one constraint per cell, no
+        volumetric locking. A linear displacement has a constant divergence, so the patch
+        test holds as for q1; the cell-mean stress is the same formula of the cell-mean
+        strain (stress.py needs nothing else). Contact weights (face integrals) are those
+        of q1: positive.
+  q2    the 27-node (triquadratic Lagrange) hexahedron, isoparametric, 3x3x3 Gauss: its
+        nodes are the vertices of the once-refined mesh (hierarchy.py), the element the
+        parent cell of 8 refined cells (element connectivity (ne, 27) in Q2_REF order).
+        Face integrals on a 9-node face by the Gauss-Lobatto (Simpson) product rule, exact
+        for planar faces: the lumped weights 1/36, 4/36, 16/36 of a flat face's area at
+        its corner, edge and centre nodes, positive (contact weights, tractions). The
+        faces are handed as the refined mesh's quadrilaterals, each node with its role
+        (0 corner, 1 edge midpoint, 2 face centre of its element's face).
+  q2p1  q2's nodes and shape functions with the volumetric strain replaced by its L2
+        projection on the linear functions of the element (a discontinuous P1 pressure:
+        the Q2-P1disc mixed u-p element, pressure condensed, as bbar is Q1-P0):
+          a_e(u, v) = int_e 2 mu dev eps(u) : dev eps(v) dx + kappa D_e^T M_e^-1 D_e,
+          (D_e u)_i = int_e q_i div u dx,  (M_e)_ij = int_e q_i q_j dx,
+          q = (1, (x - x_e) / h_e, (y - y_e) / h_e, (z - z_e) / h_e),
+        x_e the element's centroid, h_e = |e|^(1/3). 4 constraints per element (27 nodes):
+        no volumetric locking, and the pair is inf-sup stable (the mixed solves of
+        contact/solvers/mixed.py keep their iteration counts as nu -> 0.5).
+"""
+import numpy as np
+
+from contact.mesh import HEX_REF, MeshError, cross3
+
+_G = 1.0 / np.sqrt(3.0)
+_GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
+_GP2 = np.array([[a, b] for a in (-_G, _G) for b in (-_G, _G)])
+_QUAD_REF = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float)
+
+#: -element values and what they are (module docstring)
+ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
+            "bbar": "trilinear hexahedron with the cell-mean volumetric strain (B-bar = Q1-P0 "
+                    "u-p condensed): no volumetric locking as nu -> 0.5",
+            "q2": "27-node triquadratic hexahedron, 3x3x3 Gauss, on the once-refined mesh's "
+                  "vertices: the same accuracy with far fewer unknowns",
+            "q2p1": "q2 with the volumetric strain projected on a linear pressure per element "
+                    "(Q2-P1disc u-p condensed): no volumetric locking, inf-sup stable"}
+
+#: cells per chunk when computing element matrices (bounds the temporaries: the element
+#: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
+CHUNK = 4096
+
+
+def chunk(conn):
+    """Cells per chunk for cells of conn's node count: CHUNK for 8 nodes, CHUNK / 8 for
+    27 (a q2 element matrix is 11.4 times a q1 one)."""
+    return CHUNK if conn.shape[1] == 8 else CHUNK // 8
+
+
+def lame(young, poisson):
+    """Lame constants (lambda, mu) from Young's modulus E and Poisson's ratio nu."""
+    lam = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson))
+    mu = young / (2.0 * (1.0 + poisson))
+    return lam, mu
+
+
+def _hex_shape_grads():
+    """dN_a/dxi_i at the 8 Gauss points: (8 gp, 8 nodes, 3)."""
+    xi = _GP3[:, None, :]              # (g, 1, 3)
+    ref = HEX_REF[None, :, :]          # (1, a, 3)
+    fac = 1.0 + xi * ref               # (g, a, 3)
+    d = np.empty((8, 8, 3))
+    d[..., 0] = ref[..., 0] * fac[..., 1] * fac[..., 2] / 8.0
+    d[..., 1] = ref[..., 1] * fac[..., 0] * fac[..., 2] / 8.0
+    d[..., 2] = ref[..., 2] * fac[..., 0] * fac[..., 1] / 8.0
+    return d
+
+
+def _hex_shape_values():
+    """N_a at the 8 Gauss points: (8 gp, 8 nodes)."""
+    return np.prod(1.0 + _GP3[:, None, :] * HEX_REF[None, :, :], axis=2) / 8.0
+
+
+_DN = _hex_shape_grads()
+_DNT = np.ascontiguousarray(_DN.transpose(0, 2, 1))    # (g, 3, a)
+_N = _hex_shape_values()
+_W8 = np.ones(8)
+
+#: the 27 nodes of the quadratic hexahedron (q2): reference coordinates, node
+#: 9 i + 3 j + k at (xi, eta, zeta) = (i - 1, j - 1, k - 1)
+Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],
+                  dtype=float)
+#: a q2 node's role on a face: the number of its zero reference coordinates (0 corner,
+#: 1 edge midpoint, 2 face centre, 3 the cell centre)
+Q2_ROLE = np.count_nonzero(Q2_REF == 0.0, axis=1)
+
+
+def _lagrange2(t):
+    """1D quadratic Lagrange functions at nodes -1, 0, 1 and their derivatives at t (n,):
+    (n, 3), (n, 3)."""
+    t = np.asarray(t, dtype=float)[:, None]
+    L = np.hstack([0.5 * t * (t - 1.0), 1.0 - t * t, 0.5 * t * (t + 1.0)])
+    dL = np.hstack([t - 0.5, -2.0 * t, t + 0.5])
+    return L, dL
+
+
+def q2_shape(xi):
+    """N (g, 27) and dN/dxi (g, 27, 3) of the 27-node hexahedron at points xi (g, 3)."""
+    (Lx, dLx), (Ly, dLy), (Lz, dLz) = (_lagrange2(xi[:, k]) for k in range(3))
+    i, j, k = (Q2_REF + 1).astype(int).T
+    N = Lx[:, i] * Ly[:, j] * Lz[:, k]
+    dN = np.stack([dLx[:, i] * Ly[:, j] * Lz[:, k], Lx[:, i] * dLy[:, j] * Lz[:, k],
+                   Lx[:, i] * Ly[:, j] * dLz[:, k]], axis=2)
+    return N, dN
+
+
+_G3 = np.sqrt(0.6)
+_GP27 = np.array([[a, b, c] for a in (-_G3, 0, _G3) for b in (-_G3, 0, _G3)
+                  for c in (-_G3, 0, _G3)])
+_W27 = np.prod(np.where(_GP27 == 0.0, 8.0 / 9.0, 5.0 / 9.0), axis=1)
+_N27, _DN27 = q2_shape(_GP27)
+_DNT27 = np.ascontiguousarray(_DN27.transpose(0, 2, 1))
+
+#: nodes per element, and its quadrature: (N, dN/dxi, dN/dxi transposed, weights)
+NODES = {"q1": 8, "bbar": 8, "q2": 27, "q2p1": 27}
+#: the elements on the once-refined mesh's vertices (hierarchy.QuadraticCells)
+QUADRATIC = ("q2", "q2p1")
+#: the elements with a condensed pressure, and its functions per element (P0: 1, P1: 4)
+PRESSURES = {"bbar": 1, "q2p1": 4}
+_RULES = {8: (_N, _DN, _DNT, _W8), 27: (_N27, _DN27, _DNT27, _W27)}
+
+
+def geometry(X, rule=None):
+    """Physical gradients dN/dx (c, g, a, 3) and |J| w (c, g) for cells X (c, a, 3) of 8
+    (q1) or 27 (q2) nodes, at the element's Gauss points (rule: (dN, dN^T, w), default
+    that of X's node count).
+    J^-1 by its rows' cross products (columns r1 x r2, r2 x r0, r0 x r1 over det J), and
+    matmul, not einsum: 3.5x faster than einsum with numpy.linalg's batched det and solve
+    (4096 distorted cells: 0.024 s against 0.085 s)."""
+    dn, dnt, w = rule if rule is not None else _RULES[X.shape[1]][1:]
+    J = np.matmul(dnt[None], X[:, None])                # J_ij = dx_j / dxi_i (c, g, 3, 3)
+    r0, r1, r2 = J[..., 0, :], J[..., 1, :], J[..., 2, :]
+    c12 = cross3(r1, r2)
+    det = (r0 * c12).sum(axis=-1)
+    if np.any(det <= 0.0):
+        bad = int(np.argmin(det.min(axis=1)))
+        raise MeshError(f"inverted or degenerate hexahedron (local cell {bad}, det J = {det.min():.3e})")
+    inv_t = np.stack([c12, cross3(r2, r0), cross3(r0, r1)], axis=-2) / det[..., None, None]
+    return np.matmul(dn[None], inv_t), det * w          # dN/dx = J^-1 dN/dxi
+
+
+def element_stiffness(X, lam, mu, element="q1"):
+    """Element stiffness matrices K_e (c, 3 a, 3 a) of `element` (ELEMENTS) for cells X
+    (c, a, 3) (a = NODES[element]), dof order 3 a + i.
+
+    K_e depends on the cell's shape only (not on where it lies): cells whose vertices,
+    taken relative to their first vertex, agree to 1e-12 of the largest cell extent share
+    one K_e, computed once (a box mesh has one shape; an unstructured mesh pays only a
+    sort)."""
+    K, inverse = element_stiffness_shapes(X, lam, mu, element)
+    return K if inverse is None else K[inverse]
+
+
+def element_stiffness_shapes(X, lam, mu, element="q1"):
+    """(K, inverse): the element matrices of the distinct cell shapes among X and each
+    cell's shape (element_stiffness is K[inverse]); inverse None: one K per cell (fewer
+    than two cells per shape)."""
+    if X.shape[0] > 1:
+        rel = X - X[:, :1, :]
+        scale = np.abs(rel).max()
+        if scale > 0.0:
+            key = np.round(rel.reshape(X.shape[0], -1) * (1e12 / scale))
+            _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+            if first.size < X.shape[0] // 2:
+                return _element_stiffness(rel[first], lam, mu, element), inverse.ravel()
+    return _element_stiffness(X, lam, mu, element), None
+
+
+def _element_stiffness(X, lam, mu, element):
+    if element not in ELEMENTS:
+        raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
+    if X.shape[1] != NODES[element]:
+        raise ValueError(f"element {element} has {NODES[element]} nodes, got cells of "
+                         f"{X.shape[1]}")
+    dNdx, wdet = geometry(X)
+    # (matmul would be 6x faster than these einsums, but it sums in another order, and
+    # that round-off turned the fast mode's SSN system of tests/test_frame.py::
+    # test_symmetry_plane_containing_the_normal indefinite for CG on 2 ranks)
+    if element not in PRESSURES:
+        K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+    else:     # -2 mu / 3 (div)(div) pointwise + kappa D^T M^-1 D (bbar: D = int_e dN/dx)
+        K = (-2.0 * mu / 3.0) * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)
+        Dq = projected_divergence(X, dNdx, wdet, PRESSURES[element])  # M^-1/2 D (c, m, a, i)
+        K += (lam + 2.0 * mu / 3.0) * np.einsum("cmai,cmbj->caibj", Dq, Dq)
+    K += mu * np.einsum("cgaj,cgbi,cg->caibj", dNdx, dNdx, wdet)
+    lap = mu * np.einsum("cgak,cgbk,cg->cab", dNdx, dNdx, wdet)
+    K[:, :, 0, :, 0] += lap
+    K[:, :, 1, :, 1] += lap
+    K[:, :, 2, :, 2] += lap
+    n = 3 * X.shape[1]
+    return K.reshape(-1, n, n)
+
+
+def pressure_basis(X, wdet, m, points=None):
+    """The pressure functions q (c, g, m) of cells X (c, a, 3) at their Gauss points (or
+    at reference `points` (p, 3)): P0 (m = 1) 1; P1 (m = 4) 1 and (x - x_e) / h_e
+    (module docstring)."""
+    if m == 1:
+        n = wdet.shape[1] if points is None else points.shape[0]
+        return np.ones((X.shape[0], n, 1))
+    N = _RULES[X.shape[1]][0]
+    xg = np.matmul(N[None], X)                                          # (c, g, 3)
+    vol = wdet.sum(axis=1)
+    xc = np.einsum("cgi,cg->ci", xg, wdet) / vol[:, None]
+    h = np.cbrt(vol)
+    at = xg if points is None else np.matmul(q2_shape(points)[0][None], X)
+    return np.concatenate([np.ones(at.shape[:2] + (1,)),
+                           (at - xc[:, None, :]) / h[:, None, None]], axis=2)
+
+
+def projected_divergence(X, dNdx, wdet, m, with_mass=False):
+    """Dq = M^-1/2 D (c, m, a, 3) of cells X: D_i,ak = int_e q_i dN_a/dx_k, M_ij = int_e
+    q_i q_j (pressure_basis), so that Dq^T Dq = D^T M^-1 D; with_mass: also M^-1/2
+    (c, m, m) (the projection's coefficients of a divergence: M^-1/2 Dq u)."""
+    q = pressure_basis(X, wdet, m)
+    D = np.einsum("cgm,cgak,cg->cmak", q, dNdx, wdet)
+    if m == 1:
+        Mh = (wdet.sum(axis=1) ** -0.5)[:, None, None]
+    else:
+        w, V = np.linalg.eigh(np.einsum("cgm,cgn,cg->cmn", q, q, wdet))
+        Mh = np.einsum("cmk,ck,cnk->cmn", V, w ** -0.5, V)
+    Dq = np.einsum("cmn,cnak->cmak", Mh, D)
+    return (Dq, Mh) if with_mass else Dq
+
+
+def element_volume_weights(X):
+    """int_e N_a dx for cells X (c, a, 3) of 8 or 27 nodes: (c, a)."""
+    _, wdet = geometry(X)
+    return np.einsum("ga,cg->ca", _RULES[X.shape[1]][0], wdet)
+
+
+def face_weights(Xf):
+    """int_face N_a ds for bilinear quadrilateral faces Xf (f, 4, 3): (f, 4).
+
+    For rectangles this is area/4 per corner: the trapezoidal (lumped) rule.
+    """
+    s, t = _GP2[:, 0], _GP2[:, 1]
+    N = (1 + s[:, None] * _QUAD_REF[None, :, 0]) * (1 + t[:, None] * _QUAD_REF[None, :, 1]) / 4
+    dNs = _QUAD_REF[None, :, 0] * (1 + t[:, None] * _QUAD_REF[None, :, 1]) / 4
+    dNt = _QUAD_REF[None, :, 1] * (1 + s[:, None] * _QUAD_REF[None, :, 0]) / 4
+    xs = np.einsum("ga,fai->fgi", dNs, Xf)
+    xt = np.einsum("ga,fai->fgi", dNt, Xf)
+    area = np.linalg.norm(np.cross(xs, xt), axis=2)     # (f, g)
+    return np.einsum("ga,fg->fa", N, area)
+
+
+#: q2: a face node's share of the Gauss-Lobatto weight w_a |J(xi_a)| of its 9-node face,
+#: taken from each of the refined quadrilaterals holding it (1, 2 or 4 of them), by role:
+#: w_a = 1/9, 4/9, 16/9 (corner, edge, centre; Simpson's 1/3, 4/3, 1/3 squared)
+_Q2_FACE_SHARE = np.array([1.0 / 9.0, 4.0 / 9.0 / 2.0, 16.0 / 9.0 / 4.0])
+
+
+def q2_face_weights(Xf, roles):
+    """int_face N_a ds of the 9-node faces by Gauss-Lobatto (exact for planar faces), as
+    each refined quadrilateral Xf (f, 4, 3) contributes to its corners of roles (f, 4)
+    (Q2_ROLE: 0, 1, 2): (f, 4). The 9-node face's |J| at a node is that of a refined
+    quadrilateral's bilinear map at the same corner times 4: |e1 x e2| of the
+    quadrilateral's two edges from that corner."""
+    e_next = np.roll(Xf, -1, axis=1) - Xf
+    e_prev = np.roll(Xf, 1, axis=1) - Xf
+    jac = np.linalg.norm(np.cross(e_next, e_prev), axis=2)        # (f, 4)
+    if np.any(roles > 2):
+        raise ValueError("a q2 face node cannot be an element's centre")
+    return _Q2_FACE_SHARE[roles] * jac
+
+
+def nodal_face_weights(faces, coords, roles=None):
+    """Per local vertex: sum over the given faces of int N_a ds (nv,). roles: per local
+    vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals),
+    None for q1 and bbar."""
+    w = np.zeros(coords.shape[0])
+    if faces.shape[0]:
+        fw = (face_weights(coords[faces]) if roles is None
+              else q2_face_weights(coords[faces], roles[faces]))
+        np.add.at(w, faces.ravel(), fw.ravel())
+    return w
