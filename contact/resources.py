@@ -17,7 +17,6 @@ goes on anyway. The indices are checked too: over 2^31 - 1 dofs needs a PETSc bu
 64-bit indices.
 """
 import math
-import os
 import resource
 
 import numpy as np

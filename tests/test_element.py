@@ -1,4 +1,4 @@
-"""The elements (-element, contact/fem/ ELEMENTS): q1, the paper's, and bbar (B-bar:
+"""The elements (-element, contact/fem/element.py ELEMENTS): q1, the paper's, and bbar (B-bar:
 the cell-mean volumetric strain, no volumetric locking as nu -> 0.5).
 
 * the package's element matrices against the independent reference's (contact/validation/

@@ -109,13 +109,13 @@ def _errors(case, seed=0, scale=0.05, wrong=0.0, storage="inplace"):
             q = np.flatnonzero(st["slip"])
             rows = np.asarray(n.cs.dofs[0])[q].astype(PETSc.IntType)
             if q.size:
-                K.setValuesRCV(rows.reshape(-1, 1), n.cols[2][q],
-                               wrong * n.vals[2][q][:, None, :], PETSc.InsertMode.ADD_VALUES)
+                K.setValuesRCV(rows.reshape(-1, 1), n.jac.cols[2][q],
+                               wrong * n.jac.vals[2][q][:, None, :], PETSc.InsertMode.ADD_VALUES)
             K.assemble()
         assert n._linear_solve(K, rhs, 1e-13)
         dx = n.dx.copy()
     finally:
-        n._restore()
+        n.jac.restore()
     r, xt, e = x.duplicate(), x.duplicate(), []
     for t in T:
         xt.waxpy(t, dx, x)
@@ -156,7 +156,7 @@ def test_separate_jacobian_is_the_inplace_one_and_leaves_a(case):
     (so the last D is taken off right), and A is not touched: its state and values stay."""
     pr = ContactProblem(CASES[case]()).solve()
     one, two = _newton(pr, "inplace"), _newton(pr, "separate")
-    assert not one.separate and two.separate and two.K is not pr.disc.A
+    assert not one.jac.separate and two.jac.separate and two.jac.K is not pr.disc.A
     A = pr.disc.A
     rng = np.random.default_rng(3 + pr.comm.getRank())
     v = pr.x.duplicate()
@@ -175,7 +175,7 @@ def test_separate_jacobian_is_the_inplace_one_and_leaves_a(case):
                 assert A.stateGet() == state and A.norm(PETSc.NormType.FROBENIUS) == a0
             else:                                   # (the check sees a change)
                 assert A.stateGet() > state
-                n._restore()
+                n.jac.restore()
         (k2, r2), (k1, r1) = out
         k2.axpy(-1.0, k1)
         r2.axpy(-1.0, r1)

@@ -96,7 +96,7 @@ def _fixed_point(comm, k, rotate=False, relaxation=None):
     fp = FixedPoint(m, m.cs)
     fp.set_from_options()
     fp.rtol, fp.max_it = 1e-10, 100
-    x, l = m.cs.vec(), m.cs.vec()
+    l = m.cs.vec()
     return fp, l
 
 

@@ -1,6 +1,6 @@
 """Mesh: sizes as the paper counts them, labels, distribution."""
 import numpy as np
-from conftest import paper_scene, solve
+from conftest import paper_scene
 from mpi4py import MPI
 
 from contact.problem import ContactProblem

@@ -135,7 +135,7 @@ def test_rediscretised_coarse_operator_is_the_galerkin_product(tilted):
         sc["contact"]["friction"] = 0.5                     # (stick nodes there too)
     pr = ContactProblem(scenes.validate(sc), PETSc.COMM_WORLD).solve()
     n, mg = pr.loops.inner, pr.disc.multigrid
-    assert mg.rediscretised and n.D is not None
+    assert mg.rediscretised and n.jac.D is not None
     P = mg.interpolation(pr.level)
     clamped_c = mg._free_c.duplicate()                  # P is zero on the clamped columns
     clamped_c.set(1.0)
@@ -154,10 +154,10 @@ def test_rediscretised_coarse_operator_is_the_galerkin_product(tilted):
     try:
         K, _ = n._system(st)
         G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
-        mg._correct(n.D)
+        mg._correct(n.jac.D)
         assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12
     finally:
-        n._restore()
+        n.jac.restore()
         mg.release()
     G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
     assert _same_on_free(mg.coarse, G, mg._free_c) < 1e-12

@@ -6,11 +6,22 @@ from contact.fem.element import (ELEMENTS, CHUNK, chunk, lame, Q2_REF, Q2_ROLE, 
                                  NODES, QUADRATIC, PRESSURES, geometry, element_stiffness,
                                  element_stiffness_shapes, pressure_basis,
                                  projected_divergence, element_volume_weights, face_weights,
-                                 q2_face_weights, nodal_face_weights)  # noqa: F401
+                                 q2_face_weights, nodal_face_weights)
 from contact.fem.assembly import (PATTERN_CHUNK, create_matrix, assemble_stiffness,
                                   assemble_diagonal, assemble_divergence, local_to_global,
                                   load_vector, global_coordinates, dirichlet_rows,
                                   dirichlet_values, face_normals, RIGID_MODES, rigid_modes,
                                   free_rigid_modes, tangential_modes, free_translations,
                                   load_lifts_off, eliminate_dirichlet, configure_elasticity,
-                                  is_blocked, set_spd)  # noqa: F401
+                                  is_blocked, set_spd)
+
+__all__ = ["ELEMENTS", "CHUNK", "chunk", "lame", "Q2_REF", "Q2_ROLE", "q2_shape",
+           "NODES", "QUADRATIC", "PRESSURES", "geometry", "element_stiffness",
+           "element_stiffness_shapes", "pressure_basis", "projected_divergence",
+           "element_volume_weights", "face_weights", "q2_face_weights",
+           "nodal_face_weights", "PATTERN_CHUNK", "create_matrix", "assemble_stiffness",
+           "assemble_diagonal", "assemble_divergence", "local_to_global", "load_vector",
+           "global_coordinates", "dirichlet_rows", "dirichlet_values", "face_normals",
+           "RIGID_MODES", "rigid_modes", "free_rigid_modes", "tangential_modes",
+           "free_translations", "load_lifts_off", "eliminate_dirichlet",
+           "configure_elasticity", "is_blocked", "set_spd"]

@@ -6,4 +6,9 @@ from contact.mesh.plex import (HEX_REF, HEX_FACES, MeshError, create_box_mesh,
                                read_mesh_file, cross3, CHECK_CHUNK, check_cells, distribute,
                                cell_vertices, boundary_faces, displacement_section,
                                label_parts, labelled_faces, labelled_cell_faces,
-                               rotate_coordinates)  # noqa: F401
+                               rotate_coordinates)
+
+__all__ = ["HEX_REF", "HEX_FACES", "MeshError", "create_box_mesh", "read_mesh_file",
+           "cross3", "CHECK_CHUNK", "check_cells", "distribute", "cell_vertices",
+           "boundary_faces", "displacement_section", "label_parts", "labelled_faces",
+           "labelled_cell_faces", "rotate_coordinates"]

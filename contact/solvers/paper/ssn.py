@@ -30,7 +30,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options
-from contact.solvers.loop import DIVERGED_MAX_IT, Loop, ksp_reason_name
+from contact.solvers.newton_ksp import NewtonKSP
+from contact.solvers.loop import DIVERGED_MAX_IT, Loop
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
 _EV_KSP = PETSc.Log.Event("SSN linear solve")
@@ -57,23 +58,28 @@ class SemismoothNewton(Loop):
         self.diag_scale = float(diag_scale)
         self._since_setup = 0
         self._sets = self._pc_sets = None
-        self.pc_setups = 0
         self.min_step = 1e-4         # line search: below this, a proximal-gradient step
         self.full_step_below = 1e-7  # relative Newton step taken without line search
         self.fallbacks = 0           # proximal-gradient steps taken
         self.theta_newton_steps = 0  # Newton steps of Theta tried (_theta_newton)
         self.accurate_resolves = 0   # Newton systems solved again more accurately
-        self.ksp_iterations = 0
         self.line_search_cuts = 0
         self.n_stick = self.n_slip = 0
         self.contact_spring = 0.0    # `regularize`
         self.sub = None
         self.K = None
-        self.ksp = PETSc.KSP().create(comm=self.comm)
-        self.ksp.setOptionsPrefix(self.prefix)
-        self.ksp.setType("cg")
-        self.ksp.getPC().setType("gamg")
-        self.ksp.setTolerances(rtol=1e-9, atol=1e-50, max_it=2000)
+        #: the linear solves (newton_ksp.py, shared with the default solver)
+        self.linear = NewtonKSP(self.comm, self.prefix, "cg", (1e-9, 1e-50, 2000),
+                                pc_type="gamg")
+        self.ksp = self.linear.ksp
+
+    @property
+    def ksp_iterations(self):
+        return self.linear.iterations
+
+    @property
+    def pc_setups(self):
+        return self.linear.setups
 
     def check_options(self):
         if self.pc_lag < 1:
@@ -83,7 +89,7 @@ class SemismoothNewton(Loop):
         # option is there while the KSP reads it (the user's value wins), then removed
         with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "false"}):
             self.ksp.setFromOptions()
-        if self.ksp.getType() == PETSc.KSP.Type.PREONLY:
+        if self.linear.direct:
             self.pc_reuse = False        # a stale factorisation would be a wrong Jacobian
 
     def regularize(self, mu):
@@ -215,15 +221,20 @@ class SemismoothNewton(Loop):
         self.n_stick, self.n_slip = int(stick.sum()), int(slip.sum())
         return stick, slip
 
-    def _linear_solve(self, rhs):
-        """dx <- K^-1 rhs; the eliminated rows get their exact values (0 on clamped rows,
-        -x_tau on stick rows), which an iterative solve meets only to its tolerance."""
-        self.ksp.solve(rhs, self.dx)
-        self.ksp_iterations += self.ksp.getIterationNumber()
+    def _linear_solve(self, rhs, reuse=None, on_setup=None):
+        """dx <- K^-1 rhs (NewtonKSP.solve with reuse given, else with the preconditioner as
+        it is); the eliminated rows get their exact values (0 on clamped rows, -x_tau on
+        stick rows), which an iterative solve meets only to its tolerance. Returns whether
+        the solve converged."""
+        if reuse is None:
+            ok = self.linear.solve_again(rhs, self.dx)
+        else:
+            ok = self.linear.solve(rhs, self.dx, reuse, on_setup)
         self.dx.pointwiseMult(self.dx, self.free)
         if self._stick is not None:
             self.dx.setValues(*self._stick)
             self.dx.assemble()
+        return ok
 
     # -- solve ---------------------------------------------------------------------------
     def solve(self, sub, x, rtol=None):
@@ -243,22 +254,13 @@ class SemismoothNewton(Loop):
             _EV_KSP.begin()
             self.ksp.setOperators(K)
             same = self._same_sets()
-            self.ksp.getPC().setReusePreconditioner(same)
             self._since_setup += 1
-            if not same:
-                self._pc_sets = self._sets
-                self.pc_setups += 1
-                self._since_setup = 0
-            self._linear_solve(rhs)
-            if self.ksp.getConvergedReason() < 0 and same:
-                # the kept preconditioner (-ssn_pc_lag, -ssn_pc_reuse) was built for other
-                # sets, whose penalties differ by r w: set it up afresh and solve again
-                self.ksp.getPC().setReusePreconditioner(False)
-                self._pc_sets, self._since_setup = self._sets, 0
-                self.pc_setups += 1
-                self._linear_solve(rhs)
+
+            def built():              # (the kept one, -ssn_pc_lag, -ssn_pc_reuse, if it
+                self._pc_sets, self._since_setup = self._sets, 0   # fails: built afresh)
+            ok = self._linear_solve(rhs, same, built)
             _EV_KSP.end()
-            if self.ksp.getConvergedReason() < 0:
+            if not ok:
                 self.residual = float("nan")
                 reason = DIVERGED_LINEAR_SOLVE
                 break
@@ -316,12 +318,10 @@ class SemismoothNewton(Loop):
         The preconditioner is set up for it and again at the next semismooth step."""
         K, rhs = self._system(x, grad, p, lam, theta_model=True)
         self.ksp.setOperators(K)
-        self.ksp.getPC().setReusePreconditioner(False)
         self._pc_sets, self._since_setup = None, 0
-        self.pc_setups += 1
-        self._linear_solve(rhs)
+        ok = self._linear_solve(rhs, reuse=False)
         self.theta_newton_steps += 1
-        if self.ksp.getConvergedReason() < 0:
+        if not ok:
             return False
         t, dtheta, full = self._line_search(x)
         return full or not self._rejected(t, dtheta)
@@ -364,12 +364,7 @@ class SemismoothNewton(Loop):
         return t, dtheta, full
 
     def _ksp_hint(self):
-        """Why the linear solve failed, in PETSc's words, and what to try."""
-        name = ksp_reason_name(self.ksp)
-        if "NANORINF" in name:
-            return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
-        return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
-                f"-ssn_ksp_type preonly -ssn_pc_type cholesky, or raise -ssn_ksp_max_it")
+        return self.linear.hint("cholesky")
 
     def _same_sets(self):
         """True when -ssn_pc_reuse and the active, stick and slip sets are those the

@@ -1,0 +1,262 @@
+"""The default solver's globalisation (coulomb.py): a stage of Newton steps watched on the
+residual norm, and the fall-backs when a stage stalls.
+
+`stage`: from x at the friction F, full steps watched by a watchdog (Chamberlain, Powell,
+Lemarechal, Pedersen 1982), backtracking from the last point of decrease, until the
+residual falls below -newton_rtol (or its round-off floor), stalls (-newton_stall_its
+steps without halving it) or a linear solve fails. `friction_stages`: a stalled stage
+started again with less friction (continuation), then at F from that solution.
+`load_stages`: where friction continuation cannot help (a body held by friction alone),
+the load path in sub-steps. `iterate`: the whole iteration from its start x. Each works
+on the iteration `nt` (a CoulombNewton): its residual (`nt._state`), Jacobian
+(`nt._system`) and linear solve (`nt._linear_solve`), its options and counters.
+"""
+from mpi4py import MPI
+
+from contact.solvers.loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO
+
+DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
+DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
+#: a stage's ends that the fall-backs (friction, then load continuation) take over: a stall,
+#: or a Jacobian the Krylov solver cannot solve (reached on the way, e.g. through the
+#: watchdog's full steps: a thin plate, runs/stability.py)
+STALLED = (DIVERGED_STAGNATION, DIVERGED_LINEAR_SOLVE)
+#: a stage that stalls with its lowest residual within this factor of its round-off floor
+#: (`_floor`; below the floor it has converged: CONVERGED_ROUNDOFF) is not helped by a
+#: continuation: DIVERGED_STAGNATION at once, with a hint to raise -newton_rtol
+ROUNDOFF_FACTOR = 1e2
+#: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
+CONTINUATION_RTOL = 1e-8
+
+
+def iterate(nt, x):
+    """The Newton iteration (see the module) with its fall-backs when a stage stalls:
+    friction continuation (`_friction_stages`), where less friction can hold the body,
+    then load continuation (`_load_stages`) along the load path, where there is one.
+    Returns (iterations over all stages, reason)."""
+    x0 = x.duplicate()
+    x0.set(0.0)
+    scale, _ = nt._state(x0, nt.r)               # ||r(0)||: the scale of the test
+    x0.destroy()
+    nt.residual = 0.0
+    if scale == 0.0:
+        return 0, CONVERGED_ZERO
+    can_friction = nt.continuation_factor > 0.0 and not nt.friction_held and \
+        nt.comm.tompi4py().allreduce(bool((nt.F > 0.0).any()), op=MPI.LOR)
+    it, reason = friction_stages(nt, x, scale, 0, can_friction)
+    if reason in STALLED and nt._stall_hint is None and \
+            nt.path is not None and nt.load_substep_min > 0.0:
+        nt._note(it, f"stalled ({nt.stall_its} steps without halving the residual)"
+                       f"{continuation_text(nt, can_friction)}: load continuation")
+        it, reason = load_stages(nt, x, scale, it, can_friction)
+    elif reason == DIVERGED_STAGNATION and nt._stall_hint is None:
+        nt._stall_hint = (f"{nt.stall_its} steps did not halve the residual"
+                            + continuation_text(nt, can_friction)
+                            + "; try -newton_watchdog 10, -load_steps N, or "
+                              "-solver_mode fast")
+    return it, reason
+
+
+def continuation_text(nt, can_friction):
+    if not can_friction:
+        return ""
+    return f", also with friction continuation down to F x {min(nt.frictions):.3g}"
+
+
+def friction_stages(nt, x, scale, it, can_continue):
+    """Newton from x at F, with friction continuation when a stage stalls (can_continue;
+    not for a body held by friction alone, whose statics the smaller friction breaks):
+    a stage that stalls (-newton_stall_its steps without halving the residual) starts
+    again from its start, first solving with friction F x S (S^2, ... if that stalls
+    too; -newton_continuation_factor S, -newton_continuation_levels), then at F from
+    that solution. Returns (it, reason); x is the last stage's end."""
+    F, rtol = nt.F, nt._rtol
+    # factors: the frictions F x factor still to reach (the last one first); base: the
+    # factor whose solution x is at the stage's start (None: not a solution yet)
+    factors, base, start = [1.0], None, x.copy()
+    try:
+        while True:
+            nt.F = F * factors[-1]
+            nt.frictions.append(factors[-1])
+            nt._rtol = rtol if len(factors) == 1 else max(rtol, CONTINUATION_RTOL)
+            x.copy(start)
+            it, reason = stage(nt, x, scale, it)
+            if reason in CONVERGED:
+                base = factors.pop()
+                if not factors:
+                    return it, reason
+                nt._note(it, f"continuation: friction F x {factors[-1]:.3g} from here")
+            elif reason == DIVERGED_STAGNATION and len(factors) == 1 and \
+                    nt._stage_best <= ROUNDOFF_FACTOR * nt._stage_floor:
+                nt._stall_hint = (
+                    f"the residual stagnates at {nt._stage_best:.1e}, within "
+                    f"{ROUNDOFF_FACTOR:g} x its round-off floor "
+                    f"{nt._stage_floor:.1e} (eps ||A||_inf ||x|| / ||r(0)||) but "
+                    f"above it: raise -newton_rtol (e.g. to "
+                    f"{10 * nt._stage_best:.0e})")
+                return it, reason
+            elif reason in STALLED and can_continue and \
+                    len(factors) <= nt.continuation_levels:
+                # from the stage's start: a smaller friction, or, when that start is
+                # the solution at F x base, halfway (geometrically) from base, so that
+                # a climb that stalled is not tried again the same way
+                f = factors[-1]
+                factors.append(f * nt.continuation_factor if base is None
+                               else (base * f) ** 0.5)
+                start.copy(x)                        # the stage's start again
+                nt.continuations += 1
+                nt._note(it, f"stalled ({nt.stall_its} steps without halving the "
+                               f"residual): "
+                               f"starting again with friction F x {factors[-1]:.3g}")
+            else:
+                if reason in STALLED:
+                    start.copy(x)                    # the stage's start again
+                return it, reason
+    finally:
+        nt.F, nt._rtol = F, rtol
+        start.destroy()
+
+
+def load_stages(nt, x, scale, it, can_friction):
+    """Load continuation: the same problem (the same friction, gap and increment)
+    solved along its load path b(s) = path(s), s from 0 (the load x = 0 solves: the
+    previous increment's, or none) to 1 (b), in sub-steps ds: the first 1/2, halved
+    after a sub-step that stalls (down to -newton_load_substep_min, then
+    DIVERGED_STAGNATION), doubled after one that converges. The answer is the
+    problem's own: only the start of each sub-step changes. can_friction: whether
+    friction continuation was tried (the hint). Returns (it, reason)."""
+    b, rtol = nt.b, nt._rtol
+    bs = b.duplicate()
+    done, xd = 0.0, x.duplicate()
+    xd.set(0.0)
+    ds = 0.5
+    try:
+        while True:
+            s = min(1.0, done + ds)
+            if s < 1.0:
+                nt.path(s, bs)
+                nt.b, nt._rtol = bs, max(rtol, CONTINUATION_RTOL)
+            else:
+                nt.b, nt._rtol = b, rtol
+            nt.bc = None
+            nt._gather_load()
+            xd.copy(x)
+            nt.load_substeps.append(s)
+            it, reason = stage(nt, x, scale, it)
+            if reason in CONVERGED:
+                if s == 1.0:
+                    return it, reason
+                x.copy(xd)
+                done, ds = s, min(2.0 * ds, 1.0 - s)
+                nt._note(it, f"load continuation: s = {s:.4g} solved, next "
+                               f"s = {done + ds:.4g}")
+            elif reason in STALLED and ds / 2 >= nt.load_substep_min:
+                ds /= 2.0
+                nt._note(it, f"load continuation: s = {s:.4g} stalled, next "
+                               f"s = {done + ds:.4g}")
+            else:
+                if reason == DIVERGED_STAGNATION:
+                    nt._stall_hint = (
+                        f"{nt.stall_its} steps did not halve the residual, also along "
+                        f"the load path in sub-steps down to {ds:.3g} of the load (solved "
+                        f"to s = {done:.4g})" + continuation_text(nt, can_friction)
+                        + "; try -load_steps N (more increments), -newton_watchdog 10, "
+                          "or -solver_mode fast")
+                return it, reason
+    finally:
+        nt.b, nt._rtol = b, rtol
+        nt.bc = None
+        nt._gather_load()
+        bs.destroy()
+        xd.destroy()
+
+
+def stage(nt, x, scale, it):
+    """Newton from x at the friction nt.F to nt._rtol (relative to scale); it: the
+    iterations so far. Returns (it, reason): converged, DIVERGED_STAGNATION,
+    DIVERGED_MAX_IT or DIVERGED_LINEAR_SOLVE.
+
+    Globalisation, a watchdog (Chamberlain, Powell, Lemarechal, Pedersen 1982): full
+    steps are taken while the residual falls below that of the watch point (the last
+    point of sufficient decrease) within -newton_watchdog steps; a full step that
+    increases it is taken too, up to that many in a row (an active set that must
+    change by many nodes crosses kinks where ||r|| rises on the way). Then the
+    iteration goes back to the watch point and backtracks along its Newton direction
+    (Armijo on ||r||, down to -newton_linesearch_min, that step taken also without a
+    decrease). The stage has stalled when -newton_stall_its steps have not halved the
+    lowest residual."""
+    glued = x.norm() == 0.0
+    first = it + 1
+    nr, st = nt._state(x, nt.r)
+    reason, eta, nr_old, bests = None, nt.ew_max, None, [nr]   # lowest ||r|| so far
+    xw, dxw = nt.xw, nt.dxw
+    x.copy(xw)
+    nrw, stw, kw, save_dir = nr, st, 0, True         # the watch point
+    nt.residual = nr / scale
+    if nr == 0.0:
+        reason = CONVERGED_ZERO
+    while reason is None:
+        it += 1
+        if 0 < nt.watchdog <= kw:
+            # the watchdog bites: back to the watch point, backtrack along its step
+            # (its full step was the first of the kw taken)
+            xw.copy(x)
+            nr, st = nrw, stw
+            dxw.copy(nt.dx)
+            t, monotone = 0.5, True
+            nt.line_search_cuts += 1
+        else:
+            if nt.ew and nr_old is not None:           # Eisenstat-Walker, choice 2
+                e = 0.9 * (nr / nr_old) ** 2
+                if 0.9 * eta ** 2 > 0.1:
+                    e = max(e, 0.9 * eta ** 2)
+                eta = min(nt.ew_max, e)
+            elif not nt.ew:
+                eta = nt.ksp_rtol
+            if nt.ew:                 # no need to solve below the final tolerance
+                eta = min(max(eta, 0.5 * nt._rtol * scale / nr), nt.ew_max)
+            K, rhs = nt._system(st, glued and it == first)
+            if not nt._linear_solve(K, rhs, eta):
+                if kw > 0:
+                    # a full step without decrease led where the Jacobian cannot be
+                    # solved: the watchdog bites now (back to the watch point and
+                    # backtrack along its step, which needs no new solve)
+                    kw = nt.watchdog
+                    it -= 1
+                    continue
+                reason = DIVERGED_LINEAR_SOLVE
+                break
+            if save_dir:
+                nt.dx.copy(dxw)
+                save_dir = False
+            t, monotone = 1.0, nt.watchdog == 0
+        while True:
+            nt.xt.waxpy(t, nt.dx, x)
+            nr_t, st_t = nt._state(nt.xt, nt.r)
+            decrease = nr_t <= (1.0 - 1e-4 * t) * (nrw if not monotone else nr)
+            if decrease or not monotone or t <= nt.linesearch_min:
+                break
+            t *= 0.5
+            nt.line_search_cuts += 1
+        bests.append(min(bests[-1], nr_t))
+        x.swap(nt.xt)
+        nr_old, nr, st = nr, nr_t, st_t
+        if decrease or monotone:                     # a new watch point
+            x.copy(xw)
+            nrw, stw, kw, save_dir = nr, st, 0, True
+        else:                                        # a full step without decrease
+            kw += 1
+        nt.n_active = int(st["active"].sum())
+        nt.n_stick, nt.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
+        reason = nt.test(it, nr, scale)
+        floor = nt._floor(x)
+        if reason is None and nr <= floor and bests[-1] > 0.5 * bests[-2]:
+            # no longer falling, within the rounding error of evaluating r itself
+            reason = CONVERGED_ROUNDOFF
+            nt.floor = floor / scale
+        elif reason is None and len(bests) > nt.stall_its and \
+                bests[-1] > 0.5 * bests[-1 - nt.stall_its]:
+            reason = DIVERGED_STAGNATION
+            nt._stage_best, nt._stage_floor = bests[-1] / scale, floor / scale
+        nt._monitor(it, nt.residual, nt._sets_text(t) if nt.monitor else "")
+    return it, reason

@@ -1,0 +1,86 @@
+"""The linear solves of a Newton iteration: one machinery for both of ours.
+
+The default solver (coulomb.py, prefix -newton_) and the fast mode's inner solver
+(paper/ssn.py, prefix -ssn_) each solve one linear system per Newton step with a KSP of
+their own prefix, and both keep the preconditioner from step to step while the Jacobian
+changes only a little. NewtonKSP holds what they share:
+  - the KSP, created under the iteration's prefix with its defaults (type, side, norm,
+    tolerances), set from the options database by the iteration;
+  - `solve(b, x, reuse)`: with reuse, the preconditioner built at an earlier step; if that
+    solve fails, the preconditioner is built afresh (`on_setup` first: the multigrid's
+    operators, the sets it was built for) and the system solved again; the fresh set-ups
+    (`setups`) and Krylov iterations (`iterations`) are counted;
+  - `hint(direct)`: why a solve failed, in PETSc's words, and what to try.
+When to reuse is each iteration's own policy (the default solver: until a solve takes more
+than -newton_pc_rebuild_its iterations; SSN: while the active, stick and slip sets are
+those it was built for, -ssn_pc_lag): it is the `reuse` argument. The globalisations stay
+each iteration's own too: their merit functions differ (the default solver watches the
+residual norm of the whole problem, SSN decreases the subproblem's Theta).
+"""
+from petsc4py import PETSc
+
+from contact.solvers import multigrid
+from contact.solvers.loop import ksp_reason_name
+
+
+class NewtonKSP:
+    """A Newton iteration's KSP under `prefix` (e.g. "newton_"): type ksp_type, PC pc_type
+    (None: PETSc's default), right preconditioning with the unpreconditioned norm when
+    `right`, tolerances (rtol, atol, max_it)."""
+
+    def __init__(self, comm, prefix, ksp_type, tolerances, pc_type=None, right=False):
+        self.prefix = prefix
+        self.ksp = PETSc.KSP().create(comm=comm)
+        self.ksp.setOptionsPrefix(prefix)
+        self.ksp.setType(ksp_type)
+        if pc_type is not None:
+            self.ksp.getPC().setType(pc_type)
+        if right:
+            self.ksp.setPCSide(PETSc.PC.Side.RIGHT)
+            self.ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        rtol, atol, max_it = tolerances
+        self.ksp.setTolerances(rtol=rtol, atol=atol, max_it=max_it)
+        self.setups = 0            # preconditioner set-ups (fresh)
+        self.iterations = 0        # Krylov iterations, every solve
+
+    @property
+    def direct(self):
+        """A direct solve (KSPPREONLY): a kept factorisation would be a wrong Jacobian."""
+        return self.ksp.getType() == PETSc.KSP.Type.PREONLY
+
+    def solve(self, b, x, reuse, on_setup=None):
+        """x <- K^-1 b (the operators set on the KSP). reuse: keep the preconditioner of an
+        earlier step; if that solve fails, build it afresh and solve again. on_setup():
+        before each fresh build. Returns whether the (last) solve converged."""
+        for attempt in range(2):
+            kept = reuse and attempt == 0
+            self.ksp.getPC().setReusePreconditioner(kept)
+            if not kept:
+                self.setups += 1
+                if on_setup is not None:
+                    on_setup()
+            ok = self.solve_again(b, x)
+            if ok or not kept:
+                return ok
+        return ok
+
+    def solve_again(self, b, x):
+        """x <- K^-1 b with the preconditioner as it is (e.g. to a tighter tolerance)."""
+        with multigrid.galerkin_options(self.ksp):
+            self.ksp.solve(b, x)
+        self.iterations += self.ksp.getIterationNumber()
+        return self.ksp.getConvergedReason() > 0
+
+    @property
+    def last_iterations(self):
+        return self.ksp.getIterationNumber()
+
+    def hint(self, direct_pc):
+        """Why the last solve failed, in PETSc's words, and what to try (direct_pc: the
+        direct factorisation to suggest, lu or cholesky)."""
+        name = ksp_reason_name(self.ksp)
+        p = "-" + self.prefix
+        if "NANORINF" in name:
+            return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
+        return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
+                f"{p}ksp_type preonly {p}pc_type {direct_pc}, or raise {p}ksp_max_it")
