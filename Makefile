@@ -22,7 +22,9 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN   := mpirun -n $(NP) --oversubscribe
 #: the focused subset run on 4 ranks too (ranks without contact nodes, almost empty ranks)
-TESTS4   ?= tests/test_ranks.py tests/test_transfer.py tests/test_multigrid.py tests/test_jacobian.py tests/test_newton_globalisation.py tests/test_element.py tests/test_mixed.py tests/test_quadratic.py
+TESTS4   ?= tests/test_ranks.py tests/mesh/test_transfer.py tests/solvers/test_multigrid.py \
+	tests/solvers/test_jacobian.py tests/solvers/test_newton_globalisation.py \
+	tests/fem/test_element.py tests/solvers/test_mixed.py tests/fem/test_quadratic.py
 
 # $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
 # only when one is missing)
@@ -35,11 +37,12 @@ apt_ensure = missing=""; for p in $(1); do \
 	    --no-install-recommends $$missing; \
 	fi
 
-.PHONY: install run run2 test test1 test2 test4 bench report stability validate clean help view
+.PHONY: install run run2 test test1 test2 test4 test-quick bench report stability validate clean help view
 
 help:
 	@echo "make run   [ARGS='-nd 10 ...']  install if needed, solve the paper's beam (q2, N = 8)"
 	@echo "make test                       install if needed, run the suite on 1 and 2 ranks, tests/test_ranks.py on 4"
+	@echo "make test-quick                 the suite on 1 rank without the tests marked slow (a few minutes less)"
 	@echo "make view  [VIEW_DIR=runs/out/...]  ParaView (installed if needed) renders the last run -> PNGs"
 	@echo "make petsc-gpu-fetch            (network) PETSc/petsc4py sdists etc. -> .gpu/dist"
 	@echo "make petsc-gpu [GPU_ARGS=--cpu]  (offline) CUDA PETSc + petsc4py -> .gpu/prefix (README: GPU)"
@@ -109,6 +112,9 @@ test1: install
 test2: install
 	$(MPIRUN) $(PY) -m mpi4py -m pytest -q -p no:cacheprovider tests
 
+test-quick: install
+	$(PY) -m pytest -q -p no:cacheprovider -m "not slow" tests
+
 test4: install
 	mpirun -n 4 --oversubscribe $(PY) -m mpi4py -m pytest -q -p no:cacheprovider $(TESTS4)
 
@@ -122,12 +128,13 @@ CURRENT_PREFIX ?= .gpu/cpu-prefix
 #: Debian's parallel HDF5 (Open MPI): solution.h5 is written through PETSc's HDF5 viewer
 CURRENT_HDF5   ?= /usr/lib/x86_64-linux-gnu/hdf5/openmpi
 PY_TARGET       = $(shell $(SYSPY) -c 'import sys; print("%d.%d" % sys.version_info[:2])')
-TESTS_CURRENT  ?= tests/test_expression.py tests/test_mesh.py tests/test_transfer.py \
-	tests/test_multigrid.py tests/test_mixed.py tests/test_jacobian.py tests/test_coulomb.py \
-	tests/test_loops.py tests/test_quadratic.py tests/test_output_files.py \
-	tests/test_friction_held.py tests/test_newton_globalisation.py tests/test_device_paths.py
-TESTS_CURRENT2 ?= tests/test_ranks.py tests/test_multigrid.py tests/test_mixed.py \
-	tests/test_coulomb.py
+TESTS_CURRENT  ?= tests/test_expression.py tests/mesh/test_mesh.py tests/mesh/test_transfer.py \
+	tests/solvers/test_multigrid.py tests/solvers/test_mixed.py tests/solvers/test_jacobian.py \
+	tests/solvers/test_coulomb.py tests/solvers/test_loops.py tests/fem/test_quadratic.py \
+	tests/io/test_output_files.py tests/solvers/test_friction_held.py \
+	tests/solvers/test_newton_globalisation.py tests/solvers/test_device_paths.py
+TESTS_CURRENT2 ?= tests/test_ranks.py tests/solvers/test_multigrid.py tests/solvers/test_mixed.py \
+	tests/solvers/test_coulomb.py
 .PHONY: test-current petsc-current
 
 petsc-current: install

@@ -370,7 +370,7 @@ build() {
 Use it (from the repository root):
     source $prefix/env.sh
     $PY -m contact -nd 10 -vec_type $([ $kind = cuda ] && echo "cuda -mat_type aijcusparse" || echo "standard") -log_view
-    $PY -m pytest -q tests/test_device_paths.py
+    $PY -m pytest -q tests/solvers/test_device_paths.py
 $([ -n "$mpibin" ] && echo "    mpiexec -n 2 $PY -m mpi4py -m contact -nd 10 ...   (MPICH's mpiexec from $mpibin)")
 EOF
 }
@@ -452,7 +452,7 @@ measure() {
   # 1. the loops on the device: the test (host accesses, Vec types) with GPU types
   if has test; then
     CONTACT_TEST_VEC_TYPE=cuda CONTACT_TEST_MAT_TYPE=aijcusparse "$PY" -m pytest -q -s \
-      -p no:cacheprovider tests/test_device_paths.py 2>&1 | tee "$out/pytest.txt" || true
+      -p no:cacheprovider tests/solvers/test_device_paths.py 2>&1 | tee "$out/pytest.txt" || true
   fi
   # 2. correctness, GPU against CPU (the same build): faithful at Nd = 4, fast at Nd = 10
   if has correct; then

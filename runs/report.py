@@ -679,7 +679,7 @@ def total_md(tot):
     L += ["", "Each continuum value is extrapolated from the runs below (contact/validation/"
           "convergence.py): q = q* + C h^p through the finest triple of meshes that double, "
           "h = 1/Nd; the same from the next-finest doubling triple gives the second estimate, "
-          "and their difference is the error estimate. tests/test_convergence.py checks the "
+          "and their difference is the error estimate. tests/validation/test_convergence.py checks the "
           "extrapolation against closed forms.", "",
           "### The runs", ""]
     return L + runs_table(tot)

@@ -2,10 +2,20 @@
 
 Scenes are built as dicts (no global options), solved on COMM_WORLD or COMM_SELF.
 Run on 1 rank (pytest) and on 2 (mpirun -n 2 python -m mpi4py -m pytest).
+The tests are grouped as the package (GROUPS); a test module may use another's cases
+(e.g. test_independent_reference's), imported by name: the groups are on sys.path.
+Tests that take more than a few seconds are marked `slow` (`make test-quick` skips them).
 """
 import copy
 import os
 import sys
+
+#: the test folders, as the package's subpackages
+GROUPS = ("mesh", "fem", "solvers", "analysis", "io", "validation")
+_HERE = os.path.dirname(os.path.abspath(__file__))
+for _g in GROUPS:
+    if os.path.join(_HERE, _g) not in sys.path:
+        sys.path.insert(0, os.path.join(_HERE, _g))
 
 import petsc4py
 
@@ -21,6 +31,11 @@ from contact.problem import ContactProblem  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PAPER = os.path.join(ROOT, "runs", "paper_beam.yaml")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: takes more than a few seconds (make "
+                                       "test-quick skips it)")
 
 
 def paper_scene(nd=2, **solver):

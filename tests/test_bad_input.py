@@ -190,6 +190,7 @@ TWO_RANKS = ("unknown-option", "young-negative", "friction-expression-inf", "rig
              "solution-check", "mat-type-baij")
 
 
+@pytest.mark.slow
 @skip_in_parallel
 @pytest.mark.parametrize("case", TWO_RANKS)
 def test_bad_input_two_ranks_one_line_no_hang(tmp_path, case):
@@ -252,6 +253,7 @@ def _interrupt(tmp_path, sig, ranks=1, after=4.0):
     return p.returncode, err, out
 
 
+@pytest.mark.slow
 @skip_in_parallel
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_leaves_no_output(tmp_path, sig):
@@ -262,6 +264,7 @@ def test_interrupt_leaves_no_output(tmp_path, sig):
     assert not os.listdir(out)                         # nothing, not even a temporary
 
 
+@pytest.mark.slow
 @skip_in_parallel
 def test_interrupt_under_mpirun_leaves_no_output(tmp_path):
     rc, err, out = _interrupt(tmp_path, signal.SIGINT, ranks=2, after=6.0)

@@ -9,11 +9,9 @@ converged and that the option was read (PETSc's list of unused options does not 
 -help and -debug act before a solve: they run as real command lines (subprocess).
 """
 import os
-import subprocess
-import sys
 
 import pytest
-from conftest import ROOT, skip_in_parallel
+from conftest import ROOT, cli as run_cli, skip_in_parallel
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -139,20 +137,21 @@ def test_option_runs(name, mpi_tmp_path, capsys):
 
 
 def _cli(*args):
-    env = dict(os.environ, PYTHONPATH=ROOT)
-    return subprocess.run([sys.executable, "-m", "contact", *args], capture_output=True,
-                          text=True, cwd=ROOT, env=env, timeout=120)
+    return run_cli(args)
 
 
 @skip_in_parallel
 def test_help_lists_every_option():
+    """`python -m contact -help` lists every registered option (the loops' common ones
+    once, as -P_<name>)."""
     p = _cli("-help")
     assert p.returncode == 0
     for o in options.REGISTRY:
         if not o.name.startswith(tuple(LOOP_CASE)) or o.name.split("_", 1)[1] not in \
                 COMMON_VALUES:
             assert f"-{o.name}" in p.stdout, o.name
-    assert "-P_rtol" in p.stdout
+    for common, *_ in options.COMMON:
+        assert f"-P_{common}" in p.stdout, common
 
 
 @skip_in_parallel

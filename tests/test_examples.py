@@ -86,6 +86,7 @@ def test_smoke_needs_an_output_place(name, option):
     assert option in err and "--smoke" in err
 
 
+@pytest.mark.slow
 def test_bench(tmp_path):
     script("bench.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "bench.md")
@@ -150,6 +151,7 @@ def test_bench(tmp_path):
     assert float(lse_row[8]) == 1.0                                     # (the unit)
 
 
+@pytest.mark.slow
 def test_report(tmp_path):
     script("report.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "report.md")
@@ -193,6 +195,7 @@ def test_report(tmp_path):
     assert data["sizes"]["2"]["agreement"]["u"] < 1e-8
 
 
+@pytest.mark.slow
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
@@ -211,6 +214,7 @@ def test_stability(tmp_path):
         assert table_rows(md, ok)[0][4] == "converged"
 
 
+@pytest.mark.slow
 def test_table1(tmp_path):
     out, _ = script("table1.py", "--smoke", "--out-dir", tmp_path)
     row, = table_rows(out, 2)
@@ -221,6 +225,7 @@ def test_table1(tmp_path):
     assert table_rows(again, 2) == [row]
 
 
+@pytest.mark.slow
 def test_validate(tmp_path):
     script("validate.py", "--smoke", "--bem", "--out", tmp_path / "validation.md")
     md = read(tmp_path / "validation.md")
@@ -273,6 +278,7 @@ def test_validate_incline(tmp_path):
         assert float(row[2]) < 1e-6
 
 
+@pytest.mark.slow
 def test_estimate(tmp_path):
     """The error estimate's effectivity table at its smallest (q1, Nd = 16, one rank): the
     true errors come from the report's continuum values, not from the estimate."""
@@ -309,6 +315,7 @@ def test_alart_curnier_prototype():
     assert worst < 1e-8
 
 
+@pytest.mark.slow
 def test_element(tmp_path):
     """runs/element.py at its smallest: every row solved (but GAMG on the condensed
     stiffness, -newton_pressure_split off, in part 4); B-bar's beam at nu = 0.4999 not
@@ -341,6 +348,7 @@ def test_element(tmp_path):
     assert not any("failed" in c for r in quad.values() for c in r)
     assert [quad[k][3] for k in sorted(quad)] == ["no", "no", "yes", "yes"]
 
+@pytest.mark.slow
 def test_element_quadratic_part_on_two_ranks(tmp_path):
     """runs/element.py --only-quadratic under mpirun -n 2 (how element-2ranks.md is made):
     the four rows solved, the split above nu = 0.4, and the provenance says 2 ranks."""

@@ -17,6 +17,7 @@ ENV.pop("OMPI_COMM_WORLD_SIZE", None)
 ENV.pop("PYTHONPATH", None)
 
 
+@pytest.mark.slow
 @skip_in_parallel
 def test_installed_contact_solve_reads_its_command_line(tmp_path):
     venv = tmp_path / "venv"

@@ -97,6 +97,7 @@ def test_32_bit_indices():
         assert len(p.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 @skip_in_parallel
 def test_allocation_failure_in_petsc_is_one_line(tmp_path):
     """-memory_check 0 goes on: then PETSc's allocation fails (here in the mesh) and the run

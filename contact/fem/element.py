@@ -193,7 +193,7 @@ def _element_stiffness(X, lam, mu, element):
                          f"{X.shape[1]}")
     dNdx, wdet = geometry(X)
     # (matmul would be 6x faster than these einsums, but it sums in another order, and
-    # that round-off turned the fast mode's SSN system of tests/test_frame.py::
+    # that round-off turned the fast mode's SSN system of tests/fem/test_frame.py::
     # test_symmetry_plane_containing_the_normal indefinite for CG on 2 ranks)
     if element not in PRESSURES:
         K = lam * np.einsum("cgai,cgbj,cg->caibj", dNdx, dNdx, wdet)

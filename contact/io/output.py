@@ -98,7 +98,7 @@ _ROWS = {"/mesh/coordinates": "n", "/mesh/topology": "nc", "/contact/coordinates
 
 
 def dataset_table():
-    """The README's table of solution.h5 (tests/test_output_files.py holds it equal)."""
+    """The README's table of solution.h5 (tests/io/test_output_files.py holds it equal)."""
     rows = ["| dataset | shape, type | meaning |", "|---|---|---|"]
     for f in MESH + BODY + CONTACT:
         path = f.path if f.path.startswith("/") else "/" + f.path

@@ -176,7 +176,7 @@ class CoulombNewton(Loop):
     def _state(self, x, r, sets=None):
         """The sets, slip data and the residual r(x) (into r); returns (||r||, state).
         sets: (active, stick, slip) held fixed instead of x's own (the smooth residual
-        whose derivative the Jacobian is: tests/test_jacobian.py)."""
+        whose derivative the Jacobian is: tests/solvers/test_jacobian.py)."""
         _EV_RES.begin()
         cs, c = self.cs, self.c
         self.A.mult(x, self.R)                         # A's rows off the contact dofs

@@ -47,7 +47,7 @@ elementary; the rectangle integral at relative position (X, Y) is the corner sum
     x y / r^3   -r
     x / r^2     y ln r + x atan(y/x)
     y / r^2     x ln r + y atan(x/y)
-Each is verified in tests/test_halfspace_bem.py against scipy quadrature of the point-load
+Each is verified in tests/validation/test_halfspace_bem.py against scipy quadrature of the point-load
 kernel (polar quadrature around the singular point for the self-influence), and equals the
 corresponding expression of ``PohrtLi::sq_uniform_PQ`` term by term.
 

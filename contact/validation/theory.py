@@ -25,7 +25,7 @@ Sources and what was checked
       CAVEAT: the book itself was not available as searchable text to the author of this
       module (only its cover/front matter turned up), so the *equation and section numbers*
       above are quoted from memory of the 1985 edition and were NOT checked against the
-      page.  The *formulas* are checked independently: tests/test_contact_theory.py
+      page.  The *formulas* are checked independently: tests/validation/test_contact_theory.py
       integrates the Boussinesq point-load solution numerically over the Hertz pressure and
       compares with every displacement formula here, checks P = integral of p over the
       disc, P(delta(P)) = P, u_z(a) = delta - a^2/(2R) and the far field P(1-nu^2)/(pi E r).
@@ -43,7 +43,7 @@ Sources and what was checked
       value and its sources were supplied with the task (issue brief). What the tests check
       independently: beta/f = 0.5 / 0.2986 = 1.6745 (the two numbers of the entry agree),
       and the half-space BEM of halfspace_bem.py, a different method, gives c/a = 0.50 +-
-      its grid resolution for this case (tests/test_halfspace_bem.py).
+      its grid resolution for this case (tests/validation/test_halfspace_bem.py).
 [Y01] F. Yang, X. Zhang, J. C. M. Li, "Adhesive contact between a rigid sticky sphere and
       an elastic half space", Langmuir 17(3) (2001) 716-719 -- abstract seen (University
       of Kentucky research portal): "For an incompressible half space, the two solutions

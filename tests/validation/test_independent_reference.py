@@ -229,6 +229,7 @@ FRICTIONS_BLOCK = [0.0, 0.3, "0.1 + 0.5 * x * (1 - 0.5 * y)"]
 _ids = ["frictionless", "F0.3", "F_varying"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("inner", ["apg", "ssn"])
 @pytest.mark.parametrize("friction", FRICTIONS_BEAM, ids=_ids)
 def test_paper_beam_against_independent_reference(friction, inner):

@@ -3,7 +3,7 @@
 
 * the independent reference (`contact/validation/independent.py`: its own Q1 problem, solved
   by the conic solver) on the paper's beam and the sheared block of
-  tests/test_independent_reference.py, frictionless, F = 0.3 and a varying F: displacement,
+  tests/validation/test_independent_reference.py, frictionless, F = 0.3 and a varying F: displacement,
   pressure and energy, at the default -newton_rtol 1e-9 (1e-6) and at 1e-12 (1e-9);
 * the paper's loops in the fast mode at tight tolerances (runs/alart_curnier.py's: Uzawa and
   fixed point 1e-11, SSN 1e-13, its KSP 1e-12) on the beam, Nd = 3: F = 0.3, F with a jump,

@@ -52,6 +52,7 @@ def matched(xa, xb, R):
     return i
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode,tol", [("faithful", 1e-9), ("fast", 1e-6)])
 def test_turned_beam_gives_the_turned_answer(comm, mode, tol):
     """The paper's beam (Nd = 2, F = 0.3) and the same beam turned by 25 degrees about

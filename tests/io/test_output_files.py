@@ -70,6 +70,7 @@ def _datasets(path):
 COMPONENTS = {"Scalar": 1, "Vector": 3, "Tensor6": 6}
 
 
+@pytest.mark.slow
 @skip_in_parallel
 @pytest.mark.parametrize("scene", list(SCENES))
 @pytest.mark.parametrize("ranks", [1, 2])

@@ -57,6 +57,7 @@ def test_variants_against_conic_solver(preset, friction):
         assert pr.inner.n_stick + pr.inner.n_slip > 0       # friction was active
 
 
+@pytest.mark.slow
 def test_ssn_at_the_papers_r_equals_apg(comm):
     """r = 1e8 (the paper's): Newton's answer equals the faithful APG one to the APG's
     accuracy (the augmented Lagrangian is exact for any r)."""

@@ -100,6 +100,7 @@ def test_error_target_doubles_nd_until_met(tmp_path, ranks):
     assert abs(s["contact_result"]["normal"] - q) / abs(q) <= 1e-2
 
 
+@pytest.mark.slow
 @skip_in_parallel
 def test_error_target_stops_with_a_reason(tmp_path):
     """At -error_max_dofs: one line naming it, exit status 1, the last run's results

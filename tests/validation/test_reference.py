@@ -33,6 +33,7 @@ def test_frictionless_against_conic_solver():
     assert rel_err(pr.cs.local_array(pr.l), ref["pressure"]) < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("friction", [0.3, "where(x < 1.5, 0.6, 0.0)"])
 def test_coulomb_against_conic_solver(friction):
     sc = paper_scene(nd=2, **TIGHT)

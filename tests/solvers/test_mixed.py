@@ -7,7 +7,7 @@ mixed.py, -newton_pressure_split):
 * the mixed system solved by its fieldsplit gives A^-1 b (against a direct solve of A);
 * when it is used (bbar above nu = 0.4, not q1, not with -newton_pc_type or off), and a
   bad value refused;
-* in the Newton iteration (tests/test_element.py compares the solutions with the
+* in the Newton iteration (tests/fem/test_element.py compares the solutions with the
   independent reference): the default solver at nu = 0.4999 takes as many Newton steps as
   at 0.3, and without the split (GMRES + GAMG on A) it does not converge.
 """

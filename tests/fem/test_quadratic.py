@@ -316,6 +316,7 @@ def test_order_on_a_smooth_solution():
     assert e2[2] < 0.1 * e1[2]
 
 
+@pytest.mark.slow
 def test_gmsh_physical_groups_are_the_planes():
     """A gmsh mesh with q2 (read, distributed, refined once): the parts found through its
     physical groups on the element mesh (QuadraticCells.refined_faces) are those found

@@ -127,6 +127,7 @@ def _static_and_four_increments(comm, **contact):
     return one, inc
 
 
+@pytest.mark.slow
 def test_frictional_increments_on_a_homogeneous_problem_equal_the_static_solve(comm):
     """Zero gap and proportional loads: the static answer scales with the load (the cone
     constraints are homogeneous), so every increment is 1/N of it and slips the same
@@ -138,6 +139,7 @@ def test_frictional_increments_on_a_homogeneous_problem_equal_the_static_solve(c
     assert inc.converged
 
 
+@pytest.mark.slow
 def test_frictional_increments_with_a_gap_differ_from_the_static_solve(comm):
     """A curved gap makes the problem non-homogeneous: contact spreads during loading and
     the incremental (quasi-static) answer differs from the one-step one; every increment
