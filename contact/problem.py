@@ -18,11 +18,13 @@ import time
 from petsc4py import PETSc
 
 from contact.fem import admissibility
-from contact.solvers import driver
+from contact.solvers import driver, multigrid
+from contact.solvers.linear import LinearSolvers
+from contact.solvers.solution import Solution
+from contact.io import output
 from contact.analysis import estimate
 from contact import fem, options
 from contact.mesh import transfer
-from contact.solvers.paper.apg import APG
 from contact.fem.discretisation import Discretisation, element_of
 from contact.mesh.hierarchy import MeshHierarchy
 
@@ -32,6 +34,12 @@ DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadra
                "has_contact_part", "normal", "cs", "frame", "A", "b", "u_D",
                "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
                "to_xyz", "xyz_rows")
+
+
+#: the solution's fields (driver.solve's Solution), read through the problem
+SOLUTION_FIELDS = ("l", "g", "mode", "solver_mode", "loops", "residuals", "check_passed",
+                   "step_log", "last_increment", "ksp_iterations", "load_steps", "loading",
+                   "fp", "uzawa", "inner", "apg", "converged")
 
 
 class ContactProblem:
@@ -48,14 +56,7 @@ class ContactProblem:
         #: estimate.cell_indicator: (eta per local cell, its total, ||u||_a), or None
         self.error_indicator = None
         self._prolonged = None                # P u_2h while the fine level solves
-        self.solver_mode = "newton"       # -solver_mode (read when the loops are built)
-        self.mode = None                  # linear | frictionless | coulomb
-        self.loops = None                 # driver.Loops of the last static solve
-        self.l = self.g = None
-        self.residuals = None
-        self.step_log = []
-        self.last_increment = None        # the slip of the last load increment
-        self.ksp_iterations = 0           # of the linear solve (no contact part)
+        self.increments = []                  # the load increments' fields (output.py)
         stage = PETSc.Log.Stage("Setup")
         stage.push()
         try:
@@ -64,11 +65,17 @@ class ContactProblem:
                                           quadratic=element_of(self.scene) in fem.QUADRATIC)
             self.hierarchy = hierarchy
             self.level = level % len(hierarchy.levels)
-            self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level)
+            blocked = multigrid.blocked(self.scene, self.level, element_of(self.scene))
+            self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level, blocked)
+            #: the multigrid and the pressure split the linear solves share (built once)
+            self.solvers = LinearSolvers(self.disc, rediscretise=blocked)
             self.skipped = self.disc.skipped      # what this scene does not need (reported)
             self.friction_held, self.contact_held = admissibility.check(self.disc)
             self.x = self.b.duplicate()           # the DM's Vec type (cuda, ...), as b
             self.x.set(0.0)
+            #: what the last solve handed back (driver.solve); read through the names
+            #: of SOLUTION_FIELDS
+            self.solution = Solution(self.disc, self.x)
         finally:
             stage.pop()
         self.time_setup = time.perf_counter() - t0
@@ -79,7 +86,14 @@ class ContactProblem:
         stage = PETSc.Log.Stage("Solve")
         stage.push()
         try:
-            driver.solve(self, ContactProblem._coarse_start)
+            start = self._coarse_start() if driver.needs_start(self) else None
+            record, increments = output.increment_recorder() \
+                if driver.load_steps(self.scene) > 1 else (None, [])
+            self.solution = driver.solve(self, start, record)
+            self.increments = increments
+            for note in self.solution.skipped:
+                if note not in self.skipped:
+                    self.skipped.append(note)
             x0 = getattr(self, "_prolonged", None)
             if x0 is not None:
                 self.error_indicator = estimate.cell_indicator(self, x0)
@@ -149,32 +163,10 @@ class ContactProblem:
         del coarse
         gc.collect()              # the coarse levels' matrices, before the fine solve
         if self.level == len(h.levels) - 1:
-            if self.disc.multigrid is not None:
-                self.disc.multigrid.prepare()        # (its coarse level's stiffness)
+            if self.solvers.multigrid is not None:
+                self.solvers.multigrid.prepare()     # (its coarse level's stiffness)
             h.release_below(self.level)              # their meshes too
         return l0, g0
-
-    # -- the loops of the last solve -------------------------------------------------------
-    @property
-    def fp(self):
-        return self.loops.fp if self.loops is not None else None
-
-    @property
-    def uzawa(self):
-        return self.loops.uzawa if self.loops is not None else None
-
-    @property
-    def inner(self):
-        return self.loops.inner if self.loops is not None else None
-
-    @property
-    def apg(self):
-        return self.inner if isinstance(self.inner, APG) else None
-
-    @property
-    def converged(self):
-        loops = [lp for lp in (self.fp, self.uzawa, self.inner) if lp is not None]
-        return all(lp.converged for lp in loops)
 
     # -- the solution ------------------------------------------------------------------------
     def displacement(self, x=None):
@@ -183,40 +175,16 @@ class ContactProblem:
 
     def normal_force(self):
         """sum_j l_j w_j: the total normal force of the foundation on the contact part."""
-        return self.l.dot(self.cs.w) if self.cs is not None and self.l is not None else 0.0
+        return self.solution.normal_force()
 
     def iterations(self, single=False):
-        """Table 1's counts: fixed point, Uzawa (total, mean per fixed-point step), inner
-        solver (first call, total; APG columns are 0 when the inner solver is SSN).
-        With load increments: totals over the increments (first = the first increment's);
-        single=True: the last solve only."""
-        log = self.step_log
-        if log and not single:
-            its = [e["iterations"] for e in log]
-            out = dict(its[0])
-            for key in ("fixed_point", "uzawa_total", "inner_total", "apg_total",
-                        "ksp_total"):
-                out[key] = sum(i[key] for i in its)
-            calls = sum(i["uzawa_total"] / max(i["uzawa_mean"], 1e-300) for i in its)
-            out["uzawa_mean"] = out["uzawa_total"] / max(calls, 1)
-            return out
-        if self.inner is None:
-            return {"fixed_point": 0, "uzawa_total": 0, "uzawa_mean": 0.0, "inner": "none",
-                    "inner_first": 0, "inner_total": 0, "apg_first": 0, "apg_total": 0,
-                    "ksp_total": self.ksp_iterations}
-        fp = self.fp.iterations if self.fp is not None else 0
-        uz = self.uzawa.total_iterations if self.uzawa is not None else 0
-        inn = self.inner
-        apg = self.apg is not None
-        return {"fixed_point": fp, "uzawa_total": uz,
-                "uzawa_mean": uz / max(self.uzawa.calls, 1) if uz else 0.0,
-                "inner": inn.name, "inner_first": inn.first_iterations or 0,
-                "inner_total": inn.total_iterations,
-                "apg_first": (inn.first_iterations or 0) if apg else 0,
-                "apg_total": inn.total_iterations if apg else 0,
-                "ksp_total": inn.ksp_iterations}
+        """Table 1's counts (Solution.iterations)."""
+        return self.solution.iterations(single)
 
 
 for _name in DISC_FIELDS:
     setattr(ContactProblem, _name, property(lambda self, n=_name: getattr(self.disc, n),
                                             doc=f"the discretisation's {_name}"))
+for _name in SOLUTION_FIELDS:
+    setattr(ContactProblem, _name, property(lambda self, n=_name: getattr(self.solution, n),
+                                            doc=f"the solution's {_name}"))

@@ -192,7 +192,7 @@ def quadratic(nd, d=0.04):
         pr, err, t = run(sc, opts)
         row = dict(nu=nu, element=el, time=t, error=err, rtol=opts.get("newton_rtol", "1e-11"))
         if pr is not None:
-            row.update(hertz_ratios(pr, nu, d), split=pr.disc.pressure_split() is not None)
+            row.update(hertz_ratios(pr, nu, d), split=pr.solvers.pressure_split() is not None)
         rows.append(row)
         PETSc.Sys.Print(f"quadratic hertz nd {nd}: {row}")
     return rows

@@ -67,7 +67,7 @@ def test_beam_default_solver(nd, refine, exact):
     if MPI.COMM_WORLD.size >= 4 and refine in ("0", "2"):
         assert _owners(par, "contact") < MPI.COMM_WORLD.size      # the case it is about
     if refine == "2":
-        assert par.disc.multigrid.rediscretised
+        assert par.solvers.multigrid.rediscretised
 
 
 def test_beam_faithful_loops():

@@ -14,7 +14,6 @@ import numpy as np
 from mpi4py import MPI
 
 from contact import fem, mesh, options
-from contact.solvers import mixed, multigrid
 from contact.fem.contactset import ContactSet
 from contact.fem.frame import ContactFrame, basis
 from contact.scene import AXES, SceneError, foundation_normal
@@ -45,12 +44,15 @@ def element_of(scene):
 
 
 class Discretisation:
-    """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`."""
+    """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`, on the
+    hierarchy's level `level`. blocked: A in BAIJ (its solver's multigrid rediscretises its
+    first coarse operator: multigrid.blocked), else in the DM's AIJ type."""
 
-    def __init__(self, scene, comm, hierarchy, level=-1):
+    def __init__(self, scene, comm, hierarchy, level=-1, blocked=False):
         self.scene, self.comm = scene, comm
         self.hierarchy, self.level = hierarchy, hierarchy.levels[level]
         self.level_index = level % len(hierarchy.levels)
+        self.blocked = bool(blocked)
         self._setup()
 
     def _part_faces(self, name, part, conn, coords):
@@ -117,7 +119,7 @@ class Discretisation:
         self._parts()
         self._contact_set()
         mat = sc["material"]
-        blocked = multigrid.blocked(self)       # BAIJ, rediscretised coarse operator
+        blocked = self.blocked                  # BAIJ (a rediscretised coarse operator)
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
                                         element=self.element, blocked=blocked)
@@ -128,16 +130,6 @@ class Discretisation:
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame,
                                                   near_nullspace=not blocked)
         self.n_dofs = self.A.getSize()[0]
-        #: the linear solves' multigrid on the mesh hierarchy (None: one level, GAMG); its
-        #: finest interpolation is built once, for every load increment's solve
-        self.multigrid = multigrid.for_problem(self, rediscretise=blocked)
-
-    def pressure_split(self, mode="auto", pc_given=False):
-        """The mixed u-p split of a nearly incompressible bbar body's linear solves, or
-        None (mixed.split_for; mode: -newton_pressure_split); built on first use, once."""
-        if getattr(self, "_split", (None,))[0] != (mode, pc_given):
-            self._split = ((mode, pc_given), mixed.split_for(self, mode, pc_given))
-        return self._split[1]
 
     def _contact_diagonal(self):
         """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w

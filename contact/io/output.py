@@ -141,26 +141,25 @@ def gather_contact(problem, x=None):
 
 
 # -- the states written: the solution, and each load increment of a quasi-static run ------
-def increment_recorder(problem):
-    """The hook of driver.solve_incremental: record(t, factors, v, b, gap) keeps each
-    increment's contact fields and resultants (contact-sized), and its displacement v
-    (u - u_D, a copy: one Vec per increment) when solution.h5 is asked for, in
-    problem.increments. None when -output_formats asks for no file."""
+def increment_recorder():
+    """The monitor handed to driver.solve: (record, increments), record(sol, t, factors, v,
+    b, gap) keeping each increment's contact fields and resultants (contact-sized), and its
+    displacement v (u - u_D, a copy: one Vec per increment) when solution.h5 is asked for,
+    in the list increments; record is None when -output_formats asks for no file."""
     formats = parse_formats(options.get("output_formats"))
-    problem.increments = []
+    increments = []
     if not formats:
-        return None
+        return None, increments
     keep_body = "h5" in formats
-    comm = problem.comm.tompi4py()
 
-    def record(t, factors, v, b, gap):
-        """After increment t: problem.x = its du, v = u - u_D; b, gap its load and gap."""
-        st = stress.contact_state(problem, problem.x, b, gap, u=v, slip=problem.x)
-        problem.increments.append({
+    def record(sol, t, factors, v, b, gap):
+        """After increment t: sol.x = its du, v = u - u_D; b, gap its load and gap."""
+        st = stress.contact_state(sol, sol.x, b, gap, u=v, slip=sol.x)
+        increments.append({
             "t": t, "contact": st, "factors": list(factors),
             "x": v.copy() if keep_body else None,
-            "resultant": stress.resultants(comm, st, problem.normal)})
-    return record
+            "resultant": stress.resultants(sol.comm.tompi4py(), st, sol.normal)})
+    return record, increments
 
 
 def _prescribed_factor(problem, factors):

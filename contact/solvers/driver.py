@@ -15,7 +15,6 @@ from petsc4py import PETSc
 
 from contact import fem, options
 from contact.solvers import multigrid
-from contact.io import output
 from contact.analysis import residuals as res
 from contact.solvers.paper.apg import APG
 from contact.solvers.coulomb import CoulombNewton
@@ -23,6 +22,7 @@ from contact.fem.discretisation import DEFAULT_RAMP
 from contact.solvers.paper.fixedpoint import FixedPoint
 from contact.solvers.loop import ResidualCheckError
 from contact.solvers.paper.ssn import SemismoothNewton
+from contact.solvers.solution import Solution
 from contact.scene import ramp_factor
 from contact.solvers.paper.uzawa import Uzawa
 
@@ -79,12 +79,13 @@ class NewtonLoops:
 
     fp = uzawa = None
 
-    def __init__(self, disc, b, gap, contact_held=False, friction_held=False, path=None):
+    def __init__(self, disc, solvers, b, gap, contact_held=False, friction_held=False,
+                 path=None):
         self.cs = disc.cs
-        split = disc.pressure_split(options.get("newton_pressure_split", disc.scene),
-                                    PETSc.Options().hasName("newton_pc_type"))
+        split = solvers.pressure_split(options.get("newton_pressure_split", disc.scene),
+                                       PETSc.Options().hasName("newton_pc_type"))
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
-                                   disc.multigrid, close_first=contact_held,
+                                   solvers.multigrid, close_first=contact_held,
                                    rho_diag=disc.contact_diagonal, split=split,
                                    friction_held=friction_held)
         with options.inserted({} if split is None else split.newton_defaults()):
@@ -98,36 +99,50 @@ class NewtonLoops:
         return l.copy() if self.cs.has_friction else None
 
 
-def solve(pr, coarse_start=None):
-    """Run what the scene needs on the problem `pr` (problem.py); sets its solution.
-    coarse_start(pr): the start of a static contact solve, (l0, g0) with pr.x set, or None
-    (problem.py: the coarse-to-fine start on the mesh hierarchy's coarser levels)."""
-    steps = int(pr.scene.get("loading", {}).get("steps", 1))
+def load_steps(scene):
+    return int(scene.get("loading", {}).get("steps", 1))
+
+
+def needs_start(pr):
+    """Whether the solve of `pr` takes a start (solve's `start`): a static contact solve."""
+    return pr.cs is not None and pr.cs.size > 0 and load_steps(pr.scene) == 1
+
+
+def solve(pr, start=None, on_increment=None):
+    """Run what the scene needs on the problem `pr` (problem.py: its discretisation, its
+    Vec x solved in place, the linear solvers it keeps) and return the Solution.
+    start: (l0, g0) of a static contact solve, with pr.x its displacement (problem.py:
+    the coarse-to-fine start on the mesh hierarchy's coarser levels), or None.
+    on_increment(sol, t, factors, v, b, gap): called after each load increment (the
+    output's recorder of the increments), or None."""
+    sol = Solution(pr.disc, pr.x)
+    steps = load_steps(pr.scene)
     if pr.cs is None or pr.cs.size == 0:
-        pr.skipped.append("Uzawa and fixed-point loops (no contact node): one KSP solve")
+        sol.skip("Uzawa and fixed-point loops (no contact node): one KSP solve")
         if steps > 1:
-            pr.skipped.append("load steps (linear problem: one solve at the full load)")
-        solve_linear(pr)
+            sol.skip("load steps (linear problem: one solve at the full load)")
+        solve_linear(pr, sol)
         steps = 1
     elif steps == 1:
-        solve_contact(pr, pr.b, pr.cs.gap, coarse_start(pr) if coarse_start else None)
-        check_solution(pr, pr.b, pr.cs.gap)
+        solve_contact(pr, sol, pr.b, pr.cs.gap, start)
+        check_solution(pr, sol, pr.b, pr.cs.gap)
     else:
-        solve_incremental(pr, steps)
-    pr.load_steps = steps
-    pr.loading = ("static: one solve at the full load" if steps == 1 else
-                  f"quasi-static: {steps} load increments, friction on the increments")
+        solve_incremental(pr, sol, steps, on_increment)
+    sol.load_steps = steps
+    sol.loading = ("static: one solve at the full load" if steps == 1 else
+                   f"quasi-static: {steps} load increments, friction on the increments")
+    return sol
 
 
-def solve_linear(pr):
+def solve_linear(pr, sol):
     """K u = b: CG + multigrid / GAMG (-elastic_), or, for a nearly incompressible bbar
     body, GMRES on the mixed u-p system (mixed.py; -newton_pressure_split, unless
     -elastic_pc_type is given)."""
-    pr.mode = "linear"
-    split = pr.disc.pressure_split(options.get("newton_pressure_split", pr.scene),
-                                   PETSc.Options().hasName("elastic_pc_type"))
+    sol.mode = "linear"
+    split = pr.solvers.pressure_split(options.get("newton_pressure_split", pr.scene),
+                                      PETSc.Options().hasName("elastic_pc_type"))
     if split is None:
-        mg = pr.disc.multigrid
+        mg = pr.solvers.multigrid
         ksp = multigrid.elasticity_ksp(pr.A, mg=mg)
         with multigrid.galerkin_options(ksp):
             ksp.solve(pr.b, pr.x)
@@ -135,15 +150,15 @@ def solve_linear(pr):
             mg.release()                 # its Galerkin products, until the next solve
     else:
         ksp = split.linear_ksp()
-        rhs, sol = split.vecs(pr.b, pr.x)
+        rhs, xs = split.vecs(pr.b, pr.x)
         split.p.set(0.0)
-        ksp.solve(rhs, sol)
+        ksp.solve(rhs, xs)
         rhs.destroy()
-        sol.destroy()
+        xs.destroy()
     if ksp.getConvergedReason() < 0:
         raise RuntimeError(f"linear elasticity KSP diverged: reason "
                            f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} its")
-    pr.ksp_iterations = ksp.getIterationNumber()
+    sol.ksp_iterations = ksp.getIterationNumber()
     ksp.destroy()
 
 
@@ -168,21 +183,22 @@ class LoadPath:
         return out
 
 
-def solve_contact(pr, b, gap, start=None, g0=None, path=None):
-    """One static contact solve for load b and gap: pr.x, pr.l, pr.g set; start: (l0, g0)
+def solve_contact(pr, sol, b, gap, start=None, g0=None, path=None):
+    """One static contact solve for load b and gap: pr.x, sol.l, sol.g set; start: (l0, g0)
     of a coarse-to-fine start; g0: the fixed point's start (the increment before); path:
     its LoadPath (the Newton iteration's load continuation; default: the static load's)."""
-    pr.solver_mode = solver_mode(pr.scene)
-    newton = pr.solver_mode == "newton"
-    with options.inserted(SOLVER_MODES[pr.solver_mode]):
-        loops = NewtonLoops(pr.disc, b, gap, pr.contact_held, pr.friction_held is not None,
+    sol.solver_mode = solver_mode(pr.scene)
+    newton = sol.solver_mode == "newton"
+    with options.inserted(SOLVER_MODES[sol.solver_mode]):
+        loops = NewtonLoops(pr.disc, pr.solvers, b, gap, pr.contact_held,
+                            pr.friction_held is not None,
                             path or LoadPath(pr.load_groups)) if newton else \
             Loops(pr.disc, b, gap)
-        pr.loops = loops
+        sol.loops = loops
         cs = pr.cs
-        pr.l = cs.vec()
+        sol.l = cs.vec()
         if start is not None:
-            start[0].copy(pr.l)
+            start[0].copy(sol.l)
             g0 = start[1]
         if cs.has_friction and g0 is None and pr.friction_held is not None and not newton:
             g0 = normal_pressure(pr, loops, b, gap)
@@ -190,21 +206,17 @@ def solve_contact(pr, b, gap, start=None, g0=None, path=None):
             note = ("the paper's fixed-point, Uzawa and inner loops (-solver_mode newton: "
                     "one Newton iteration on the whole problem; -solver_mode faithful: the "
                     "paper's)")
-            if note not in pr.skipped:
-                pr.skipped.append(note)
-            note = "friction rows and the stick/slip sets (F = 0)"
-            if not cs.has_friction and note not in pr.skipped:
-                pr.skipped.append(note)
+            sol.skip(note)
+            if not cs.has_friction:
+                sol.skip("friction rows and the stick/slip sets (F = 0)")
         elif not cs.has_friction:
-            note = "fixed-point loop and prox (F = 0)"
-            if note not in pr.skipped:
-                pr.skipped.append(note)
-        pr.mode = "coulomb" if cs.has_friction else "frictionless"
-        g = loops.solve(pr.x, pr.l, g0)
-        pr.g = g if g is not None else cs.vec()
+            sol.skip("fixed-point loop and prox (F = 0)")
+        sol.mode = "coulomb" if cs.has_friction else "frictionless"
+        g = loops.solve(pr.x, sol.l, g0)
+        sol.g = g if g is not None else cs.vec()
 
 
-def solve_incremental(pr, n):
+def solve_incremental(pr, sol, n, on_increment=None):
     """N increments: increment k is the static problem for du with the load
     sum_g f_g(t_k) b_g - A u_(k-1), the gap gap - u_nu,(k-1) and friction on du_tau
     (quasi-static Coulomb friction, implicit Euler in the load parameter); its fixed point
@@ -213,8 +225,7 @@ def solve_incremental(pr, n):
     b, gap, un = pr.b.duplicate(), cs.vec(), cs.vec()
     v = pr.x.duplicate()
     v.set(0.0)
-    pr.step_log, g_start = [], None
-    record = output.increment_recorder(pr)       # each increment's fields for the files
+    sol.step_log, g_start = [], None
     base = b.duplicate()
     for k in range(1, n + 1):
         A.mult(v, base)
@@ -226,53 +237,53 @@ def solve_incremental(pr, n):
         cs.normal_displacement(v, un)
         gap.waxpy(-1.0, un, cs.gap)                  # gap - u_nu,(k-1)
         pr.x.set(0.0)
-        solve_contact(pr, b, gap, g0=g_start, path=LoadPath(pr.load_groups, (k - 1) / n,
-                                                             k / n, base))
-        check_solution(pr, b, gap)
+        solve_contact(pr, sol, b, gap, g0=g_start,
+                      path=LoadPath(pr.load_groups, (k - 1) / n, k / n, base))
+        check_solution(pr, sol, b, gap)
         v.axpy(1.0, pr.x)
-        if record is not None:
-            record(k / n, factors, v, b, gap)
+        if on_increment is not None:
+            on_increment(sol, k / n, factors, v, b, gap)
         if k == n:
-            pr.last_increment = pr.x.copy()          # the slip of the last increment
-        pr.step_log.append({"step": k, "load_factor": k / n,
+            sol.last_increment = pr.x.copy()         # the slip of the last increment
+        sol.step_log.append({"step": k, "load_factor": k / n,
                             "part_factors": {p: f for f, (r, names, _) in
                                              zip(factors, pr.load_groups) for p in names
                                              if r != DEFAULT_RAMP},
-                            "normal_force": pr.normal_force(),
-                            "iterations": pr.iterations(single=True),
-                            "reason": pr.inner.reason,
-                            "residual_floor": getattr(pr.inner, "floor", None),
-                            "load_substeps": list(getattr(pr.inner, "load_substeps", [])),
-                            "residuals": dict(pr.residuals)})
+                            "normal_force": sol.normal_force(),
+                            "iterations": sol.iterations(single=True),
+                            "reason": sol.inner.reason,
+                            "residual_floor": getattr(sol.inner, "floor", None),
+                            "load_substeps": list(getattr(sol.inner, "load_substeps", [])),
+                            "residuals": dict(sol.residuals)})
         if cs.has_friction:
-            g_start = pr.l.copy()
+            g_start = sol.l.copy()
     v.copy(pr.x)
     for vec in (b, base, gap, un, v):
         vec.destroy()
 
 
-def check_solution(pr, b, gap):
+def check_solution(pr, sol, b, gap):
     """The loops stop on a small change of their iterate, which a vanishing step also
     gives: check the answer itself. Raises ResidualCheckError when a residual of
     contact/analysis/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
     tol = options.get("check_tol", pr.scene)
-    pr.residuals = res.residuals(pr, pr.x, b=b, gap=gap)
-    worst = max(pr.residuals, key=pr.residuals.get)
-    value = pr.residuals[worst]
-    if tol > 0 and not value <= tol and pr.converged:
-        pr.check_passed = False
-        inner = pr.loops.inner
-        if pr.loops.uzawa is None:
+    sol.residuals = res.residuals(sol, pr.x, b=b, gap=gap)
+    worst = max(sol.residuals, key=sol.residuals.get)
+    value = sol.residuals[worst]
+    if tol > 0 and not value <= tol and sol.converged:
+        sol.check_passed = False
+        inner = sol.loops.inner
+        if sol.loops.uzawa is None:
             raise ResidualCheckError(
                 f"solution check failed: the Newton iteration stopped, but the {worst} "
                 f"residual is {value:.2e} > {tol:g} (-check_tol): try a tighter "
                 f"-newton_rtol, or -solver_mode faithful")
         raise ResidualCheckError(
             f"solution check failed: the loops stopped, but the {worst} residual is "
-            f"{value:.2e} > {tol:g} (-check_tol); with r = {pr.loops.uzawa.r:g} the "
+            f"{value:.2e} > {tol:g} (-check_tol); with r = {sol.loops.uzawa.r:g} the "
             f"{inner.title} steps may be too short to move: try a smaller "
             f"-uzawa_r or tighter -{inner.prefix}rtol / -uzawa_rtol")
-    pr.check_passed = bool(value <= tol) if tol > 0 else None
+    sol.check_passed = bool(value <= tol) if tol > 0 else None
 
 
 def normal_pressure(pr, loops, b, gap):

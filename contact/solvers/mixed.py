@@ -99,11 +99,11 @@ class Split:
     """A_g, R Gq, Gq^T (clamped rows / columns eliminated as A's), -Cq and S_p of a
     discretisation (module docstring); M, the mixed operator [[A_g, Gq^T], [R Gq, -Cq]]."""
 
-    def __init__(self, disc, lam, mu):
+    def __init__(self, disc, lam, mu, mg=None):
         comm = disc.A.getComm()
-        #: the u-block's preconditioner: geometric multigrid on the mesh hierarchy (the
-        #: discretisation's, as for A), or GAMG on a mesh of one level
-        self.mg = disc.multigrid
+        #: the u-block's preconditioner: geometric multigrid on the mesh hierarchy (that of
+        #: A's solves: linear.py), or GAMG on a mesh of one level (None)
+        self.mg = mg
         mat = disc.scene["material"]
         self.lam_mu = lam / mu
         lam_g = LAMBDA_SPLIT * mu
@@ -210,7 +210,7 @@ class Split:
             o.destroy()
 
 
-def split_for(disc, mode="auto", pc_given=False):
+def split_for(disc, mode="auto", pc_given=False, mg=None):
     """The Split of a discretisation, or None. mode (-newton_pressure_split): auto, a Split
     for bbar or q2p1 with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
     Newton steps' preconditioner (pc_given: -newton_pc_type, e.g. lu, is one for K: a
@@ -222,4 +222,4 @@ def split_for(disc, mode="auto", pc_given=False):
     if mode == "off" or pc_given or disc.element not in fem.PRESSURES or \
             lam <= LAMBDA_SPLIT * mu:
         return None
-    return Split(disc, lam, mu)
+    return Split(disc, lam, mu, mg)

@@ -60,15 +60,15 @@ SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 GALERKIN = {"matptap_via": "allatonce"}
 
 
-def blocked(disc):
-    """Whether disc's stiffness is BAIJ, its multigrid's first coarse operator
+def blocked(scene, level_index, element):
+    """Whether the stiffness of `element` on the hierarchy's level `level_index` is BAIJ, its multigrid's first coarse operator
     rediscretised (the module docstring): q1 on a mesh hierarchy in the Newton mode, unless
     the command line asks for a Mat type (-mat_type aij: AIJ and PETSc's Galerkin
     products), GPU Vecs, another preconditioner (-newton_pc_type gamg, ...) or its own
     Galerkin setting (-newton_pc_mg_galerkin)."""
     opts = PETSc.Options()
-    if (disc.level_index == 0 or disc.element != "q1"
-            or options.get("solver_mode", disc.scene) != "newton"
+    if (level_index == 0 or element != "q1"
+            or options.get("solver_mode", scene) != "newton"
             or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
     for prefix in PREFIXES:
@@ -256,7 +256,7 @@ def galerkin_options(ksp):
 
 def for_problem(disc, rediscretise=False):
     """The Multigrid of a discretisation, or None when its mesh has one level (GAMG); the
-    discretisation keeps its own (`disc.multigrid`), shared by every solve on it.
+    problem keeps it (linear.LinearSolvers), shared by every solve on it.
     rediscretise: its first coarse operator assembled on the level below (a BAIJ
     stiffness: `blocked`)."""
     if disc.level_index == 0:

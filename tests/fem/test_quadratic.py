@@ -399,7 +399,7 @@ def test_pressed_block_q2p1_nearly_incompressible():
     sc = pressed_block(nu, 2, E, p, mode="newton")
     sc["mesh"]["element"] = "q2p1"
     pr = solve(sc)
-    assert pr.disc.pressure_split() is not None
+    assert pr.solvers.pressure_split() is not None
     check_pressed_block(pr, nu, E, p, 1e-8)
     body = stress.body_stress(pr)
     want = np.array([0, 0, -p, 0, 0, 0], float)

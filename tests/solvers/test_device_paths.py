@@ -324,9 +324,10 @@ def test_newton_host_work_is_the_contact_rows(comm, storage):
 # -- (b) every Vec of the loops has the DM's type ---------------------------------------------
 
 def _loop_vecs(pr):
-    """name -> Vec for every Vec held by the problem, its contact set and its loops."""
+    """name -> Vec for every Vec held by the problem, its solution, its contact set and its
+    loops."""
     out = {}
-    for owner_name in ("problem", "cs", "fp", "uzawa", "sub", "inner"):
+    for owner_name in ("problem", "solution", "cs", "fp", "uzawa", "sub", "inner"):
         owner = pr if owner_name == "problem" else pr.uzawa.sub if owner_name == "sub" \
             else getattr(pr, owner_name)
         if owner is None:
@@ -371,7 +372,7 @@ def _check_types(comm, variant):
     if comm.getSize() == 1 and not VEC_TYPE:
         assert _dm_vec_type(ref) == "seq" != dm_type          # a non-default type indeed
     vecs = _loop_vecs(pr)
-    assert {"problem.x", "problem.l", "problem.g", "cs.w", "uzawa.l_new"} <= set(vecs)
+    assert {"problem.x", "solution.l", "solution.g", "cs.w", "uzawa.l_new"} <= set(vecs)
     if pr.apg is not None:
         assert {"inner.y", "inner.grad", "inner.thr", "sub._s"} <= set(vecs)
     wrong = {k: v.getType() for k, v in vecs.items() if v.getType() != dm_type}

@@ -72,7 +72,7 @@ def _newton(pr, storage="inplace"):
     d = pr.disc
     PETSc.Options().setValue("newton_jacobian", storage)
     try:
-        n = CoulombNewton(d.A, d.b, d.cs, d.clamped, d.diag_scale, d.multigrid,
+        n = CoulombNewton(d.A, d.b, d.cs, d.clamped, d.diag_scale, pr.solvers.multigrid,
                           close_first=pr.contact_held).set_from_options(pr.scene)
     finally:
         PETSc.Options().delValue("newton_jacobian")

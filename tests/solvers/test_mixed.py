@@ -24,11 +24,11 @@ from contact.solvers.loop import ConvergenceError
 from contact.problem import ContactProblem
 
 
-def _disc(nu, element="bbar", nd=2):
+def _problem(nu, element="bbar", nd=2):
     sc = _bbar_block(0.3, nu)
     sc["mesh"]["nd"] = nd
     sc["mesh"]["element"] = element
-    return ContactProblem(sc, PETSc.COMM_WORLD).disc
+    return ContactProblem(sc, PETSc.COMM_WORLD)
 
 
 def _free_rows(disc, M):
@@ -41,8 +41,9 @@ def _free_rows(disc, M):
 
 @pytest.mark.parametrize("nu", [0.45, 0.4999])
 def test_split_condenses_to_the_bbar_stiffness(nu):
-    disc = _disc(nu, nd=3)
-    split = disc.pressure_split()
+    pr = _problem(nu, nd=3)
+    disc = pr.disc
+    split = pr.solvers.pressure_split()
     assert split is not None and split.kappa > 0
     K = _free_rows(disc, split.condensed())
     A = _free_rows(disc, disc.A)
@@ -58,8 +59,9 @@ def test_split_condenses_to_the_bbar_stiffness(nu):
 def test_mixed_solve_is_the_condensed_solve():
     """GMRES with the split's fieldsplit on [[A_g, Gq^T], [R Gq, -Cq]] [u; q] = [b; 0]:
     u = A^-1 b, and the pressure rows' residual is small where the condensed one is."""
-    disc = _disc(0.4999, nd=3)
-    split = disc.pressure_split()
+    pr = _problem(0.4999, nd=3)
+    disc = pr.disc
+    split = pr.solvers.pressure_split()
     b = disc.b
     ksp = PETSc.KSP().create(comm=disc.A.getComm())
     ksp.setOptionsPrefix("test_mixed_")
@@ -107,7 +109,8 @@ def test_when_the_split_is_used(nu, element, given, used):
 
 
 def test_bad_value_is_refused():
-    disc = _disc(0.45)
+    pr = _problem(0.45)
+    disc = pr.disc
     with pytest.raises(ValueError, match="-newton_pressure_split must be auto or off, got "
                                          "'on'"):
         mixed.split_for(disc, "on")
@@ -160,7 +163,7 @@ def test_no_contact_solve_closed_form():
         with options.inserted({"newton_pressure_split": mode}):
             pr = solve(sc)
         assert pr.mode == "linear"
-        assert (pr.disc.pressure_split(mode) is not None) == (mode == "auto")
+        assert (pr.solvers.pressure_split(mode) is not None) == (mode == "auto")
         X, U = gather(pr)[:2]
         exact = uniaxial(X, nu, E, p)
         assert np.abs(U - exact).max() <= 1e-8 * np.abs(exact).max()

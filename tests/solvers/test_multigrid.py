@@ -53,7 +53,7 @@ def _linear_its(nd, pc=None):
     with options.inserted({"elastic_pc_type": pc} if pc else {}):
         pr = ContactProblem(paper_scene(nd=nd, mode="newton"), PETSc.COMM_WORLD,
                             c2f_levels=2)
-        ksp = multigrid.elasticity_ksp(pr.A, rtol=1e-8, mg=pr.disc.multigrid)
+        ksp = multigrid.elasticity_ksp(pr.A, rtol=1e-8, mg=pr.solvers.multigrid)
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     x = pr.b.duplicate()
     ksp.solve(pr.b, x)
@@ -93,7 +93,7 @@ def test_newton_with_multigrid_is_newton_with_gamg():
             pr = solve(paper_scene(nd=8, mode="newton"))
         assert pr.loops.inner.ksp.getPC().getType() == pc
         assert ("baij" in pr.A.getType()) == (name == "mg"), pr.A.getType()
-        assert pr.disc.multigrid.rediscretised == (name == "mg")
+        assert pr.solvers.multigrid.rediscretised == (name == "mg")
         runs[name] = pr
     ug, lg = fields(runs["gamg"])
     for name in ("mg", "galerkin"):
@@ -134,7 +134,7 @@ def test_rediscretised_coarse_operator_is_the_galerkin_product(tilted):
         sc["contact"]["foundation"] = {"normal": [0.0, 0.05, 1.0], "point": [0.0, 0.0, -1e-5]}
         sc["contact"]["friction"] = 0.5                     # (stick nodes there too)
     pr = ContactProblem(scenes.validate(sc), PETSc.COMM_WORLD).solve()
-    n, mg = pr.loops.inner, pr.disc.multigrid
+    n, mg = pr.loops.inner, pr.solvers.multigrid
     assert mg.rediscretised and n.jac.D is not None
     P = mg.interpolation(pr.level)
     clamped_c = mg._free_c.duplicate()                  # P is zero on the clamped columns
@@ -187,7 +187,7 @@ def test_preconditioner_in_the_dms_mat_type(element):
         pr = ContactProblem(copy.deepcopy(sc), PETSc.COMM_WORLD).solve()
         assert kind in pr.A.getType()
         n = CoulombNewton(pr.disc.A, pr.disc.b, pr.disc.cs, pr.disc.clamped,
-                          pr.disc.diag_scale, pr.disc.multigrid).set_from_options(pr.scene)
+                          pr.disc.diag_scale, pr.solvers.multigrid).set_from_options(pr.scene)
         n.set_load(pr.disc.b, pr.disc.cs.gap)
         n._gather_load()
         n.mg.set_interpolations(n.ksp)
