@@ -537,7 +537,9 @@ def write_md(sizes, tot, mr, args, times, unavailable, quad=None):
                                                                           c.get("why", ""))
                     L.append(f"| {k} | {tol} |" + " – |" * 6 + f" skipped: {why} |")
         L += ["", "Reading (computed from the table):", ""] + reading(nd, d)
-    L += ["", "## Notes", ""] + notes(sizes, tot)
+    L += ["", "## Notes", "", "Computed from the tables above; what was read from them by "
+          "hand, with its dates, is kept apart in report-notes.md (this script never writes "
+          "it).", ""] + notes(sizes, tot)
     os.makedirs(os.path.dirname(args.record), exist_ok=True)
     with open(args.record, "w") as f:
         f.write("\n".join(L) + "\n")
@@ -559,10 +561,9 @@ def notes(sizes, tot):
             slower = [(a, b) for a, b in zip(ok, ok[1:]) if b["time"] < 0.7 * a["time"]]
             for a, b in slower:
                 L.append(f"- Nd = {nd}, {k}: tol {t(b['tol'])} ran in {b['time']:.2g} s, "
-                         f"faster than tol {t(a['tol'])} ({a['time']:.2g} s) with "
+                         f"faster than tol {t(a['tol'])} ({a['time']:.2g} s), with "
                          f"{b['summary']['iterations']['inner_total']} vs "
-                         f"{a['summary']['iterations']['inner_total']} inner iterations: "
-                         f"timing noise from the shared machine.")
+                         f"{a['summary']['iterations']['inner_total']} inner iterations.")
             uz = [it(c, "uzawa_total") for c in ok]
             if len(uz) >= 3:
                 med = float(np.median(uz))
@@ -575,10 +576,8 @@ def notes(sizes, tot):
                              f"{max(it(c, 'uzawa_mean') for c in odd):.0f} Uzawa steps per "
                              "fixed-point step with as few as "
                              f"{min(it(c, 'inner_total') / it(c, 'uzawa_total') for c in odd):.0f}"
-                             " APG iterations per Uzawa step: the APG's relative-step test "
-                             "is met after a few iterations, the multiplier then moves little "
-                             "per step and Uzawa crawls to its own tolerance (their errors "
-                             "are in the table).")
+                             " inner iterations per Uzawa step (their errors are in the "
+                             "table).")
         apg = [c for key in ("restart", "diagonal", "faithful") for c in sw.get(key, [])
                if c["status"] == "ok" and c["tol"] == 1e-6]
         newton = [c for key in ("ssn", "fast") for c in sw.get(key, [])
@@ -587,16 +586,7 @@ def notes(sizes, tot):
             L.append(f"- Nd = {nd}: the same number means different accuracy: at tol 1e-06 "
                      f"the APG variants end with displacement error "
                      f"{span([c['err']['u'] for c in apg])}, the Newton variants with "
-                     f"{span([c['err']['u'] for c in newton])} (APG stops on a small relative "
-                     f"step, which with the step 1/L ~ 1/r is far from a small error).")
-    if 12 in sizes and sizes[12]["refs"][1]["name"].endswith(REF_MUMPS[0]):
-        L.append("- One-off check (2026-11-21, not rerun by the script: 268 s): APG + restart "
-                 "at -apg_rtol 1e-14 -uzawa_rtol 1e-12 -fp_rtol 1e-12 at Nd = 12 agreed with "
-                 "the SSN reference to 5.3e-13 (displacement), 7.7e-12 (pressure), 6.1e-14 "
-                 "(energy). At Nd = 12 the script's second reference is SSN with a different "
-                 "linear solver (MUMPS-preconditioned CG instead of GAMG), which checks the "
-                 "linear solves but not the algorithm; the algorithm check is the APG "
-                 "reference at the smaller size.")
+                     f"{span([c['err']['u'] for c in newton])}.")
     um = (tot.get("limits") or {}).get("umax")
     if um and um["triple"] == [20, 40, 80]:
         c = C3D20R
@@ -608,28 +598,24 @@ def notes(sizes, tot):
                  f"Nd = 80 {100 * tot['rows'][-1]['err']['umax']:.2f} %"
                  + (f"; Richardson on those three (order {rc[1]:.1f}) gives {rc[0]:.4e}, "
                     f"{100 * (1 - rc[0] / um['value']):.2f} % below q*" if rc else "")
-                 + ". That extrapolation is weak (its N = 6 value, 4.5261e-4, lies below N = "
-                 "4's: its penalty contact has an error of its own), but the gap is larger "
-                 "than q*'s own error estimate, which only measures how well the two Q1 "
-                 "triples agree: if the order of max |u| changes beyond Nd = 80 (the clamped "
-                 "edge meets the contact face: a singularity), q* moves. Read the 0.1 % "
-                 "column of max |u| with that caveat; the force and the energy do not have it "
-                 "to this extent (their orders 1.44 and 1.65 are those of smoother "
-                 "quantities).")
+                 + f"; q*'s own error estimate: {100 * um['relative_error']:.2g} % (what "
+                 "was read from this: report-notes.md).")
     byn = {r["nd"]: r for r in tot.get("rows", []) if r["status"] == "ok" and "err" in r}
     for nd, d in sizes.items():
         newton = [c for c in d["sweeps"].get("newton", []) if c["status"] == "ok"
                   and c["tol"] == 1e-11]
         if newton and nd in byn:
             c, r = newton[0], byn[nd]
+            below = c["err"]["u"] < 0.01 * r["err"]["umax"] and \
+                c["err"]["J"] < 0.01 * r["err"]["energy"]
             L.append(f"- Solver against discretisation error at Nd = {nd}: the default solver "
                      f"at its default tolerance (-newton_rtol 1e-11) leaves a displacement "
                      f"error of {e(c['err']['u'])} and an energy error of {e(c['err']['J'])} "
                      f"against the reference of the same mesh; the mesh itself is "
                      f"{e(r['err']['umax'])} off the continuum max |u| and "
-                     f"{e(r['err']['energy'])} off its energy: the total error is the "
-                     f"discretisation error, and a looser -newton_rtol saves little time "
-                     f"(the sweep above).")
+                     f"{e(r['err']['energy'])} off its energy"
+                     + (": the solver's part of the total error is below 1 % of it." if below
+                        else ": the solver's part is not negligible."))
     return L
 
 
@@ -807,11 +793,8 @@ def cpu_note(sizes):
     if not r:
         return "."
     return (f"; the median CPU / wall-clock ratio of the runs over 3 s is "
-            f"{float(np.median(r)):.2f}: a single-rank run keeps more than one core busy "
-            "(on 2026-11-21 a second thread of the python process, spending ~90 % of its "
-            "time in the kernel, presumably Open MPI's progress thread of the singleton "
-            "MPI_Init, used about one core), so on this 2-core machine every run competes "
-            "with the other jobs for both cores.")
+            f"{float(np.median(r)):.2f} (above 1: a single-rank run keeps more than one core "
+            "busy; report-notes.md).")
 
 
 def cpu(c):

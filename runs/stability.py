@@ -4,7 +4,8 @@ Each row runs `python -m contact OPTIONS -output_dir runs/out/stability/<row-id>
 convergence or to a named failure (per-run timeout, default 120 s), and the results are
 recorded as markdown in runs/results/stability.md: verdict (converged / failed: <the
 error line> / timeout / skipped), fixed-point / Uzawa / inner / KSP iterations, solve
-time, max residual, max |u|, contact status counts, and a findings paragraph per group.
+time, max residual, max |u|, contact status counts, and a summary line per group
+computed from its rows (the findings written by hand: runs/results/stability-notes.md).
 
 Groups (--only GROUP runs one; the others are then reported from the cache only):
   r         -uzawa_r from 1e2 to 1e12, faithful (APG) and fast (SSN)
@@ -485,10 +486,9 @@ def verdict_of(res):
     return "not run" if res is None else res["verdict"]
 
 
-# -- findings: prose written from the recorded run, its numbers filled in from the rows ------
+# -- the rows of a group, formatted --------------------------------------------------------
 class Rows:
-    """One group's results by row id, formatted; a row without a summary reads as its
-    verdict (failed, timeout) or '–'."""
+    """One group's results by row id."""
 
     def __init__(self, results):
         self.results = results
@@ -500,10 +500,6 @@ class Rows:
     def ok(self, id_):
         r = self.results.get(id_)
         return bool(r) and r["verdict"] == "converged"
-
-    def missing(self, id_):
-        r = self.results.get(id_)
-        return r["verdict"] if r and r["verdict"] in ("failed", "timeout") else "–"
 
     def failed(self, prefix):
         return [i for i, r in self.results.items()
@@ -519,36 +515,10 @@ class Rows:
             out.append(f"{i} ({why.strip()})")
         return ", ".join(out) or "none"
 
-    def u(self, id_, fmt=".3e"):
-        s = self.summary(id_)
-        return format(s["max_displacement"], fmt) if s else self.missing(id_)
-
-    def it(self, id_, key):
-        s = self.summary(id_)
-        return str(s["iterations"][key]) if s else self.missing(id_)
-
-    def res(self, id_, key=None):
-        s = self.summary(id_)
-        if not s:
-            return "–"
-        return f"{(s['residuals'][key] if key else max_residual(s)[0]):.1e}"
-
-    def status(self, id_):
-        st = self.results[id_].get("status") if self.results.get(id_) else None
-        return "/".join(map(str, st)) if st else "–"
-
     def max_res(self, ids):
         """The largest max residual of these rows, '–' if none has a summary."""
         vals = [max_residual(self.summary(i))[0] for i in ids if self.summary(i)]
         return f"{max(vals):.0e}" if vals else "–"
-
-    def ratio(self, a, b):
-        sa, sb = self.summary(a), self.summary(b)
-        return f"{sa['max_displacement'] / sb['max_displacement']:.2f}" if sa and sb else "–"
-
-
-def listing(values, fmt):
-    return ", ".join(fmt(v) for v in values)
 
 
 def span(xs):
@@ -556,370 +526,81 @@ def span(xs):
     return f"{min(xs)}-{max(xs)}" if xs else "–"
 
 
-def findings_r(R):
-    big = ("1e6", "1e7", "1e8", "1e10")
-    paper = {r: f"r-paper-{r}" if r in ("1e8", "1e10") else f"r-faithful-{r}"
-             for r in ("1e4",) + big}
-    fast_big = ("1e6", "1e8", "1e10", "1e12")
-    return (
-        "Larger r helps the Uzawa loop only while the inner solver can follow. **Faithful "
-        "(APG, Nd = 3):** Uzawa iterations in total "
-        + listing(("1e4",) + big, lambda r: f"{R.it(paper[r], 'uzawa_total')} at r = {r}")
-        + " (1e8 and 1e10 with the paper's APG limit), but the APG iterations of the first "
-        "Uzawa step grow roughly like sqrt(r) or faster, since the step is 1/L with "
-        "L = L_A + r max w: " + listing(big, lambda r: R.it(paper[r], "inner_first"))
-        + f" for r = {', '.join(big)}. With the 20000 cap the failures are "
-        f"{R.failures('r-faithful-')}, and with the paper's limit {R.failures('r-paper-')}. "
-        "Accuracy stops improving too: the max residual is "
-        + listing(("1e4",) + big, lambda r: f"{R.res(paper[r])} (r = {r})")
-        + ". Penetration keeps falling with r, but the complementarity and Coulomb residuals "
-        "grow again beyond r = 1e6-1e7, because APG's stopping test (relative step < 1e-8 "
-        "with a step 1/L) stops further from the minimiser when L is larger. On this mesh "
-        "the faithful mode is best at r = 1e6 (smallest residual and time), not at 1e8; "
-        "below that the outer loop is the bottleneck (r = 1e4: "
-        f"{R.it('r-faithful-1e4', 'uzawa_total')} Uzawa iterations, residual "
-        f"{R.res('r-faithful-1e4')}). **Fast (SSN, Nd = 4):** from r = 1e6 to 1e12 the "
-        "iterations stay put (FP / Uzawa / SSN / KSP "
-        + listing(fast_big, lambda r: "/".join(R.it(f"r-fast-{r}", k) for k in
-                                             ("fixed_point", "uzawa_total", "inner_total",
-                                              "ksp_total")))
-        + ") and the penetration falls like 1/r ("
-        + listing(fast_big, lambda r: R.res(f"r-fast-{r}", "penetration"))
-        + "): larger r costs nothing because SSN solves the penalised systems with CG + GAMG. "
-        "The max residual stops improving at r = 1e8, where the Coulomb residual (set by the "
-        "fixed-point tolerance) takes over. Small r is where the fast mode breaks: failed "
-        f"rows {R.failures('r-fast-')}. At r = 1e4 Newton stalls (with "
-        "-ssn_monitor: the line search accepts step 2^-15 at every iteration, relative "
-        "change 4.3e-10 just above the 1e-10 tolerance, until the 100-iteration limit); with "
-        "exact Newton systems (Cholesky, `r-fast-1e4-direct`) it converges, so the stall "
-        "comes from the inexact Krylov solves of the fast preset (`-ssn_ksp_rtol 1e-3`).")
-
-
-def findings_young(R):
-    Es = ("1", "1e3", "21.19e4", "1e9")
-    fast = [R.u(f"E-fast-{E}-rscaled", ".6e") for E in Es]
-    faith = [R.u(f"E-faithful-{E}-rscaled", ".6e") for E in ("1", "21.19e4", "1e9")]
-    return (
-        "Units do not matter when r is scaled with E: for E = 1 ... 1e9 max|u| is "
-        f"{' = '.join(fast)} (fast) and {' = '.join(faith)} (faithful), with the same "
-        "iteration counts and residuals in every row; only the energy scales with E. If r is "
-        "not scaled, the penalty relative to the stiffness, r/E, changes. For small E it "
-        "grows (E = 1 with r = 1e8 acts like r = 2e13 at the paper's E): the fast mode does "
-        f"not mind (penetration {R.res('E-fast-1-rfixed', 'penetration')}), the faithful APG "
-        f"{'hits its cap' if not R.ok('E-faithful-1-rfixed') else 'still converges'}. For "
-        "large E it shrinks (E = 1e9 with r = 1e8 acts like r = 2e4): fast mode needs "
-        f"{R.it('E-fast-1e9-rfixed', 'fixed_point')} FP / "
-        f"{R.it('E-fast-1e9-rfixed', 'uzawa_total')} Uzawa iterations instead of "
-        f"{R.it('E-fast-1e9-rscaled', 'fixed_point')} / "
-        f"{R.it('E-fast-1e9-rscaled', 'uzawa_total')}, with residual "
-        f"{R.res('E-fast-1e9-rfixed')} instead of {R.res('E-fast-1e9-rscaled')}; faithful "
-        "(r = 1e6 at E = 1e9, like r = 212) "
-        f"{'runs into the Uzawa limit' if not R.ok('E-faithful-1e9-rfixed') else 'converges'}. "
-        "So r is a stiffness and must be given relative to E: the default r = 1e8 is right "
-        "only for E near 2e5 in the paper's units (MPa).")
-
-
-def findings_poisson(R):
-    nus = ("0", "0.3", "0.45", "0.49", "0.499", "0.4999")
-    return (
-        "Near-incompressible locking shows and is not hidden. max|u| at Nd = 4: "
-        + listing(nus, lambda n: f"{R.u(f'nu-fast-nd4-{n}')} (nu = {n})")
-        + ": it first rises with nu, then falls; at nu = 0.4999 it is "
-        f"{R.ratio('nu-fast-nd4-0.4999', 'nu-fast-nd4-0.3')} of the nu = 0.3 value at Nd = 4 "
-        f"and {R.ratio('nu-fast-nd6-0.4999', 'nu-fast-nd6-0.3')} at Nd = 6. Refining from Nd "
-        f"= 4 to 6 raises max|u| by a factor {R.ratio('nu-fast-nd6-0.4999', 'nu-fast-nd4-0.4999')}"
-        f" at nu = 0.4999 but only {R.ratio('nu-fast-nd6-0.3', 'nu-fast-nd4-0.3')} at nu = 0.3: "
-        "the trilinear (Q1) elements lock volumetrically and the error goes away only slowly "
-        "with refinement, so results for nu > 0.49 are too stiff (a mixed or B-bar "
-        "formulation would be needed). The fast solver survives it (all rows converge), at a "
-        "cost in the linear solves: KSP iterations at Nd = 4 "
-        + listing(nus, lambda n: R.it(f"nu-fast-nd4-{n}", "ksp_total"))
-        + " (GAMG degrades as lambda/mu grows). The faithful APG does not: L_A grows like "
-        "lambda ~ 1/(1 - 2 nu), its iterations rise ("
-        + listing(("0", "0.3", "0.45"), lambda n: R.it(f"nu-faithful-{n}", "inner_total"))
-        + f" for nu = 0, 0.3, 0.45) and it fails beyond: {R.failures('nu-faithful-')}.")
-
-
-def findings_friction(R):
-    Fs = ("0.1", "0.3", "0.6", "1.0", "2.0")
-    fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
-          if R.summary(i) and "relax" not in i and not i.endswith("-0")]
-    warm = [i for i in R.results if i.startswith("F-fast-nd") and R.summary(i)]
-    cold = [i for i in R.results if i.startswith("F-fast-cold") and R.summary(i)]
-    faithful = [i for i in R.results if i.startswith("F-faithful") and R.summary(i)]
-
-    def worst(ids):
-        return max((max_residual(R.summary(i))[0] for i in ids), default=float("nan"))
-
-    return (
-        "The fixed point itself converged in every row that got that far (F > 0: "
-        f"{span(fp)} iterations without relaxation; also at F = 100 in the loads "
-        "group), so the new oscillation/stagnation detection never fired on this scene. The "
-        f"failures are in the fast mode's inner solver: {R.failures('F-fast-')}. With the "
-        "preset's fixed-point warm start (`-fp_warm_start xl`) SSN fails its line search "
-        "at the first Newton step of a later fixed-point iteration, and the warm-started "
-        f"rows that converge at F >= 0.6 end with Coulomb residuals up to {worst(warm):.1e} "
-        "(flagged). Without the warm "
-        f"start (`-fp_warm_start none`) every F converges, max residual {worst(cold):.1e}, "
-        "for two to four times the SSN iterations ("
-        + listing(Fs, lambda F: f"{R.it(f'F-fast-nd4-{F}', 'inner_total')} -> "
-                  f"{R.it(f'F-fast-cold-{F}', 'inner_total')}") + f" for F = {', '.join(Fs)})."
-        " `-fp_relaxation 0.5` is no cure here, because the fixed point is not what fails: "
-        "in faithful mode it gives the same solution with about three times the fixed-point "
-        "iterations ("
-        + listing(("0.6", "1.0", "2.0"),
-                  lambda F: f"{R.it(f'F-faithful-{F}', 'fixed_point')} -> "
-                            f"{R.it(f'F-faithful-relax-{F}', 'fixed_point')}")
-        + " for F = 0.6, 1, 2), and in fast mode it still fails at F = 0.6 and adds an SSN "
-        "stall at F = 1.0. The faithful mode (r = 1e6) converges for every F with residuals "
-        f"<= {worst(faithful):.1e}. max|u| falls as friction holds the beam: "
-        + listing(Fs, lambda F: R.u(f"F-fast-cold-{F}")) + f" for F = {', '.join(Fs)} "
-        f"(Nd = 4, cold start), {R.u('F-fast-nd4-0')} without friction.")
-
-
-def findings_loads(R):
-    return (
-        "**Lift-off:** the whole contact face separates (status "
-        f"{R.status('load-lift')}) and the fast mode converges in "
-        f"{R.it('load-lift', 'fixed_point')} FP / {R.it('load-lift', 'uzawa_total')} Uzawa / "
-        f"{R.it('load-lift', 'inner_total')} SSN iterations, but with residuals "
-        f"{R.res('load-lift')}, just under the solution check's tolerance 1e-3, where the "
-        "exact answer is 0. With no pressure carried, the residuals are relative to the "
-        "floor 1e-3 x max nodal load / max contact weight, and the fast preset's inexact "
-        "linear solves (`-ssn_ksp_rtol 1e-3`) leave reactions of that size at the free "
-        "contact nodes. The check therefore rejects correct lift-off solutions: in faithful "
-        "mode (`load-lift-faithful`; with APG rtol 1e-12 it passes at "
-        f"{R.res('load-lift-faithful-tight')}) and with no top load in fast mode "
-        "(`load-notop`, where exact Cholesky Newton systems give "
-        f"{R.res('load-notop-direct')} for the same problem). **Pressed flat** (pressure x10, "
-        f"x100): no contact node separates ({R.status('load-press-300')}, "
-        f"{R.status('load-press-3000')}), the iteration counts stay those of the paper's load "
-        f"and max|u| grows with the pressure ({R.u('load-press-300')}, "
-        f"{R.u('load-press-3000')}). "
-        "**Tangential load** t on the top against the friction limit F x 30 = 9 "
-        "(separated/stick/slip): "
-        + listing(("5", "9", "15", "30", "100"),
-                  lambda t: f"t = {t}: {R.status(f'load-tang{t}')}")
-        + ". From the limit on no node sticks; the clamp at x = 0 keeps the body from sliding "
-        "away, and at t = 100 the load tips the beam and more of the face lifts. All "
-        "converge with residuals <= "
-        f"{R.max_res(f'load-tang{t}' for t in ('5', '9', '15', '30', '100'))} "
-        f"(Uzawa iterations {R.it('load-tang5', 'uzawa_total')} to "
-        f"{R.it('load-tang30', 'uzawa_total')}). **Full stick** (F = 100): no slipping node "
-        f"({R.status('load-stick')}); fast residual {R.res('load-stick')}, faithful "
-        f"{R.res('load-stick-faithful')} (Coulomb: APG stops on a small step, not a small "
-        "error).")
-
-
-def findings_thin(R):
-    return (
-        "The 1:100 plate and wall converge in fast mode on every mesh. The pressed plate "
-        f"has all contact nodes in contact (status {R.status('thin-plate-nd3')} at Nd = 3) "
-        f"and max|u| {R.u('thin-plate-nd1')} to {R.u('thin-plate-nd3')} with refinement; "
-        "the KSP iterations follow the element shape more than the mesh size "
-        f"({R.it('thin-plate-flat', 'ksp_total')} on 81 cells of aspect 33 against "
-        f"{R.it('thin-plate-nd3', 'ksp_total')} on 810 cells of aspect 11), the Newton and "
-        "Uzawa counts do not. The faithful APG "
-        f"{'fails the 20000 cap' if not R.ok('thin-plate-faithful') else 'converges'} on the "
-        "plate even at r = 1e6: the thin direction raises L_A (stiffness ~ 1/h^2 across the "
-        "thickness) and slows APG. A traction part whose plane matches no face (the top at "
-        "z = 1 left on a 0.03-thick plate, `thin-plate-toptraction-stale`) is "
-        + ("rejected with a named error." if R.failed("thin-plate-toptraction")
-           else "**not** rejected: the load is silently dropped."))
-
-
-def findings_elements(R):
-    return (
-        "Elongated hexahedra are a discretisation problem more than a solver problem: max|u| "
-        f"with aspect-3 elements is {R.u('elem-1x1x1-nd4')} (4x4x4) and {R.u('elem-1x1x1-nd6')} "
-        f"(6x6x6), against {R.u('elem-3x1x1-nd6')} on the cube mesh (Nd = 6); aspect 9-18 "
-        f"gives {R.u('elem-1x3x3-nd2-cold')} and {R.u('elem-1x6x6-nd2')}, "
-        f"{R.ratio('elem-1x6x6-nd2', 'elem-3x1x1-nd6')} of the cube value (long Q1 elements "
-        "lock in bending), while short or flat elements (aspect 4-6 the other way) come "
-        f"close to it ({R.u('elem-12x1x1-nd3')}, {R.u('elem-3x1x6-nd3')}). Solvers: failed rows "
-        f"{R.failures('elem-')}; the fast mode on 2x6x6 (aspect 9) fails "
-        "the SSN line search with the fixed-point warm start and converges without it (the "
-        "same failure as in the friction group). Flat elements cost KSP iterations "
-        f"({R.it('elem-3x1x6-nd3', 'ksp_total')} vs {R.it('elem-3x1x1-nd6', 'ksp_total')}).")
-
-
-def findings_newton(R):
-    ok = [i for i in R.results if R.ok(i)]
-    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
-    must_fail = ("newton-fvar-negative", "newton-fvar-syntax", "newton-fvar-name",
-                 "newton-block-slides", "newton-thin-plate-toptraction-stale")
-    failed = [i for i in R.failed("newton-")]
-    unexpected = [i for i in failed if i not in must_fail]
-    return (
-        f"The default solver converges on {len(ok)} of {len(R.results)} rows (Newton steps "
-        f"on the finest mesh {span(its)}; max residual {R.max_res(ok)}), including F = 100 "
-        f"at Nd = 20 ({R.it('newton-F100-nd20', 'inner_total')} steps), nu = 0.4999 at "
-        f"Nd = 10 ({R.it('newton-nu-0.4999-nd10', 'ksp_total')} GMRES iterations: GAMG on "
-        f"a nearly incompressible body), the friction-held block "
-        f"({R.it('newton-block-shear', 'inner_total')} steps over 4 increments) and the "
-        f"turning shear ({R.it('newton-tang-turn', 'inner_total')} over 6). The rows that "
-        f"must fail fail with their named reason: {R.failures('newton-') or 'none'}"
-        + (f"; unexpected failures: {', '.join(unexpected)}." if unexpected else
-           "; no other row fails."))
-
-
-def _grid_findings(R, prefix, what):
-    ok = [i for i in R.results if i.startswith(prefix) and R.ok(i)]
-    rows = [i for i in R.results if i.startswith(prefix)]
-    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
-    return (f"The default solver converges on {len(ok)} of {len(rows)} rows ({what}; Newton "
-            f"steps on the finest mesh {span(its)}, over all increments; max residual "
-            f"{R.max_res(ok)}). Failed: {R.failures(prefix) or 'none'}.")
-
-
-def findings_fgrid(R):
-    return _grid_findings(R, "fgrid-", "F from 0 to 100, Nd from 2 to 20") + (
-        " Before the watchdog and the friction continuation (coulomb.py) F = 10 at Nd = 3 "
-        "and F = 30 and 100 at Nd = 6 (and so at Nd = 12, started from Nd = 6) ended in "
-        "DIVERGED_MAX_IT, cycling between two slip sets.")
-
-
-def findings_gaps(R):
-    return _grid_findings(R, "gap-", "uniform, varying and tilted gaps, F from 0.5 to 100") \
-        + (" Before the closing first step every row failed at step 1 (KSP "
-           "DIVERGED_BREAKDOWN: no node active at x = 0, the Jacobian of a floating body).")
-
-
-def findings_fvar(R):
-    fp = [R.summary(i)["iterations"]["fixed_point"] for i in R.results
-          if R.summary(i) and R.summary(i)["iterations"]["fixed_point"]]
-    return (
-        "F varying over the face, with F = 0 on part of it, converges in every mode "
-        f"(fixed point {span(fp)} iterations; F = 0.3 for x > 1.5: status "
-        f"{R.status('fvar-half')}, no node sticks). F = 0 everywhere written as an "
-        f"expression takes the frictionless path ({R.it('fvar-zero', 'fixed_point')} FP "
-        f"iterations, max|u| {R.u('fvar-zero')}, as with `-friction 0`). F = 2 on half the face "
-        f"converges with Coulomb residual {R.res('fvar-half-large', 'coulomb')} (the warm start "
-        "again, see the friction group). Malformed F (negative somewhere, a syntax error, an "
-        "unknown name) gives one-line named errors, no traceback.")
-
-
-def _continued(R, i):
-    """The number of solves (increments) of row i that needed the load continuation."""
-    s = R.summary(i)
-    steps = s.get("steps") or [s]
-    return sum(bool(e.get("load_substeps")) for e in steps)
-
-
-def findings_held(R):
-    grid = [i for i in R.results if re.match(r"held-nd\d+-s", i)]
-    ok = [i for i in grid if R.ok(i)]
-    its = [R.summary(i)["iterations"]["inner_total"] for i in ok]
-    cont = [i for i in ok if _continued(R, i)]
-    others = [i for i in R.results if i not in grid and not i.endswith("-tips")]
-    ok_o = [i for i in others if R.ok(i)]
-    tips = [i for i in R.results if i.endswith("-tips")]
-    return (
-        f"The friction-held block converges on {len(ok)} of {len(grid)} rows of the Nd x "
-        f"increments x shear grid (Nd {HELD_ND[0]}-{HELD_ND[-1]}, {HELD_STEPS[0]}-"
-        f"{HELD_STEPS[-1]} increments, q = {', '.join(HELD_SHEAR)} F p; Newton steps over "
-        f"all increments {span(its)}; max residual {R.max_res(ok)}); {len(cont)} of them "
-        f"needed the load continuation in some increment ({', '.join(cont) or 'none'}). "
-        f"The block on a gap and the tall block below its tipping limit: {len(ok_o)} of "
-        f"{len(others)} converge (max residual {R.max_res(ok_o)}). Past the tipping limit "
-        f"the run refuses: {R.failures('held-tall-') or 'none'}"
-        + ("." if all(not R.ok(i) for i in tips) else "; **a tipping row converged**.")
-        + " Before (commit a9c36e3: watchdog 3, friction continuation only; the same rows, "
-        "1 rank, run there on 2026-11-27) 29 of the 105 grid rows failed, "
-        "DIVERGED_STAGNATION after friction continuation down to F x 0.0081: rows of 2 "
-        "or more increments at q = 0.8 or 0.95 F p from Nd = 8 up (at Nd = 32 every one of "
-        "them; none at 0.5 F p or in one increment), and 14 of the 51 gap and tall-block "
-        "rows; the tall block past its limit ended in "
-        "DIVERGED_STAGNATION or DIVERGED_BREAKDOWN, and with the new fall-backs but without "
-        "the tipping check it 'converged' at Nd = 8 with max |u| = 5e9.")
-
-
-def findings_rubber(R):
-    ok = [i for i in R.results if R.ok(i)]
-    ro = [i for i in ok if R.summary(i).get("reason") == "CONVERGED_ROUNDOFF"]
-    floors = [R.summary(i)["residual_floor"] for i in ro]
-    bad = [i for i in R.results if not R.ok(i)]
-    return (
-        f"{len(ok)} of {len(R.results)} rows converge (Newton steps "
-        f"{span([R.summary(i)['iterations']['inner_total'] for i in ok])}; max certified "
-        f"residual {R.max_res(ok)}); {len(ro)} of them at the residual's round-off floor "
-        f"(CONVERGED_ROUNDOFF, relative floor "
-        f"{f'{min(floors):.1e}-{max(floors):.1e}' if floors else '–'}), the rest "
-        f"to -newton_rtol 1e-11. Failed: {R.failures('rubber-') or 'none'}"
-        + (f" ({', '.join(bad)}: B-bar's Q1-P0 pair is not inf-sup stable, and at lambda / "
-           "mu = 5e6 the fieldsplit's diagonal Schur approximation leaves GMRES(100) short "
-           "of the forcing term (measured on Hertz, nd = 3: DIVERGED_BREAKDOWN after 200 "
-           "iterations of the second Newton step); `-newton_ksp_type fgmres "
-           "-newton_ksp_max_it 2000` converges (5 steps, 3402 Krylov iterations) and so does "
-           "a direct solve, `-newton_ksp_type preonly -newton_pc_type lu`; q2p1, the "
-           "automatic element there, converges)" if bad else "")
-        + ". Before (commit a9c36e3; the same rows, 1 rank, run there on 2026-11-27) 9 of the 24 "
-        "rows failed: the q2p1 beam from nu = 0.4999 and the bbar beam from 0.49999 with "
-        "DIVERGED_STAGNATION at round-off (exit 1, no files; at 0.4999999 after 72 steps, and "
-        "DIVERGED_MAX_IT: forcing terms too loose for lambda / mu = 5e6), Hertz with bbar at "
-        "0.499999 and 0.4999999 with DIVERGED_LINEAR_SOLVE (the upper Schur factorisation).")
+def summary_line(R):
+    """One group's summary, computed from its rows alone: how many converged, their
+    iterations and residuals, which failed and why, which converged above RESIDUAL_FLAG."""
+    ids = [i for i, r in R.results.items() if r and r["verdict"] != "skipped"]
+    ok = [i for i in ids if R.ok(i)]
+    inner = [R.summary(i)["iterations"]["inner_total"] for i in ok]
+    flagged = [i for i in ok if max_residual(R.summary(i))[0] > RESIDUAL_FLAG]
+    skipped = [i for i, r in R.results.items() if r and r["verdict"] == "skipped"]
+    return (f"{len(ok)} of {len(ids)} rows converged (inner iterations {span(inner)}, over "
+            f"all increments; max residual {R.max_res(ok)})"
+            + (f"; above {RESIDUAL_FLAG:g}: {', '.join(flagged)}" if flagged else "")
+            + f". Failed: {R.failures('')}"
+            + (f". Skipped: {', '.join(skipped)}" if skipped else "") + ".")
 
 
 GROUPS = {
     "r": ("Uzawa parameter r",
           "The paper's beam (F = 0.3) at Nd = 3 in faithful mode (480 dofs) and Nd = 4 in "
           "fast mode (975 dofs). `r-faithful-*` cap APG at 20000 iterations, `r-paper-*` "
-          "keep the paper's limit (1e6).", cases_r, findings_r),
+          "keep the paper's limit (1e6).", cases_r),
     "young": ("Young's modulus and units",
               "E from 1 to 1e9 with the three tractions multiplied by E / 21.19e4, so the "
               "exact displacement is the same for every E; r either scaled the same way "
               "(1e8 x E/E0 fast, 1e6 x E/E0 faithful) or left as it is.",
-              cases_young, findings_young),
+              cases_young),
     "poisson": ("Poisson ratio",
                 "nu from 0 to 0.4999: fast at Nd = 4 and 6, faithful at Nd = 3 with r = 1e6.",
-                cases_poisson, findings_poisson),
+                cases_poisson),
     "friction": ("Friction coefficient",
                  "F from 0 to 2: fast at Nd = 4 and 6, fast without the preset's fixed-point "
                  "warm start (`cold`), faithful at Nd = 3 with r = 1e6, and "
-                 "`-fp_relaxation 0.5` for F >= 0.6.", cases_friction, findings_friction),
+                 "`-fp_relaxation 0.5` for F >= 0.6.", cases_friction),
     "loads": ("Loads",
               "Top traction +30 (upward; the end traction (10, 0, 20) stays) and 0 both lift "
               "the whole contact face; pressure x10 and x100 press it flat; a tangential top "
               "traction t in x against the friction limit F x 30 = 9; full stick (F = 100).",
-              cases_loads, findings_loads),
+              cases_loads),
     "thin": ("Thin bodies",
              "A plate 3 x 1 x 0.03 pressed on its large face (the top traction moved to "
              "z = 0.03 with `-scene_boundary_top_plane_1`) and a wall 3 x 0.03 x 1 standing "
-             "on its edge: aspect ratio 1:100.", cases_thin, findings_thin),
+             "on its edge: aspect ratio 1:100.", cases_thin),
     "elements": ("Elongated elements",
                  "The 3 x 1 x 1 beam meshed with elongated or flat hexahedra "
                  "(`-scene_mesh_cells_per_nd_*`); the cube mesh at Nd = 6 is the reference.",
-                 cases_elements, findings_elements),
+                 cases_elements),
     "newton": ("The default solver (newton) on every row",
                "Each row of the groups above with the loops' options dropped (`-uzawa_r`, "
                "`-fp_relaxation`, `-solver_mode`, ...; rows that then coincide run once), "
                "solved by the default whole-problem Newton, then rows that push harder: "
                "F = 2 and 100 at Nd = 10 and 20, F with jumps, a tangential load that turns, "
                "the friction-held block, the incline, Hertz, nu = 0.4999 at Nd = 10.",
-               cases_newton, findings_newton),
+               cases_newton),
     "fgrid": ("The default solver: F against Nd",
               "The paper's beam in the default mode, F = 0, 0.1, 0.3, 1, 3, 10, 30, 100 at "
               "Nd = 2 to 8, 10, 12, 16, 20 (coarse-to-fine start from Nd = 4 up).",
-              cases_fgrid, findings_fgrid),
+              cases_fgrid),
     "gaps": ("Bodies held by the foundation alone across a gap",
              "runs/scenes/block_gap.yaml (a unit block, no clamp, pressed then sheared in 4 "
              "increments, q = 0.8 p) on a uniform gap 1e-4, gaps 1e-4 (1 + x) and "
              "1e-4 (1 + x y), and a tilted foundation (normal (0.05, 0.03, 1)), F = 0.5 to "
-             "100, Nd = 2 to 8.", cases_gaps, findings_gaps),
+             "100, Nd = 2 to 8.", cases_gaps),
     "held": ("Bodies held by friction and the foundation alone",
              "runs/scenes/block_shear.yaml (a unit block, no clamp, pressed by p = 2 then "
              "sheared by q) in the default mode on the grid Nd = 2, 4, 8, 12, 16, 24, 32 x "
              "1, 2, 4, 8, 16 increments x q = 0.5, 0.8, 0.95 F p; the block on a gap "
              "(block_gap.yaml); a tall block (1 x 1 x 2, its top loaded) at 0.5, 0.8, 0.95 "
              "of its tipping limit q H = N a / 2, and past it (must fail: it tips over).",
-             cases_held, findings_held),
+             cases_held),
     "rubber": ("Nearly incompressible bodies (nu -> 0.5)",
                "The paper's beam (q2p1, N = 4; bbar, Nd = 8) and Hertz (q2p1, nd = 2; bbar, "
                "nd = 3) in the default mode, nu = 0.49 to 0.4999999.",
-               cases_rubber, findings_rubber),
+               cases_rubber),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
-             "values that must give a one-line error.", cases_fvar, findings_fvar),
+             "values that must give a one-line error.", cases_fvar),
 }
 
 #: --smoke: one or two cheap rows per group, two malformed inputs among them
@@ -953,14 +634,14 @@ def main(argv=None):
     out = args.out_dir or (OUT if args.ranks == 1 else f"{OUT}-np{args.ranks}")
     record = args.record or (os.path.join(out, "stability.md") if args.smoke else RECORD)
     keep = (lambda c: c.id in SMOKE) if args.smoke else (lambda c: True)
-    groups = {name: (title, intro, [c for c in make() if keep(c)], findings)
-              for name, (title, intro, make, findings) in GROUPS.items()
+    groups = {name: (title, intro, [c for c in make() if keep(c)])
+              for name, (title, intro, make) in GROUPS.items()
               if not (args.record_only and args.only) or name in args.only}
     os.makedirs(out, exist_ok=True)
     t0 = time.perf_counter()
     support = option_support((c for g in groups.values() for c in g[2]), out)
     results = {}
-    for name, (title, intro, cases, _) in groups.items():
+    for name, (title, intro, cases) in groups.items():
         run_group = args.only is None or name in args.only
         for c in cases:
             if c.requires and not support[c.requires]:
@@ -1000,13 +681,14 @@ def main(argv=None):
         "cap APG at 20000 iterations (`-apg_max_it 20000`) unless they say otherwise, so they "
         "fail with a named reason instead of running for hours; `r = 1e6` rows use an r the "
         "capped APG reaches at Nd = 3 (the paper's 1e8 does not, see the r group). A note "
-        f"marks a converged row whose max residual exceeds {RESIDUAL_FLAG:g}. The findings "
-        "were written from the run recorded here: their numbers are filled in from the rows, "
-        "their wording is not re-derived when the solver changes.", ""]
-    for name, (title, intro, cases, findings) in groups.items():
+        f"marks a converged row whose max residual exceeds {RESIDUAL_FLAG:g}. Each group "
+        "ends with a summary computed from its rows; what was concluded from them, written "
+        "by hand and dated, is kept apart in stability-notes.md (this script never writes "
+        "it).", ""]
+    for name, (title, intro, cases) in groups.items():
         gres = {c.id: results[c.id] for c in cases}
         lines += [f"## {title} (`--only {name}`)", "", intro, ""] + table(cases, gres)
-        lines += ["", "**Findings.** " + findings(Rows(gres)), ""]
+        lines += ["", "**Summary.** " + summary_line(Rows(gres)), ""]
     text = "\n".join(lines) + "\n"
     with open(record, "w") as f:
         f.write(text)

@@ -314,10 +314,9 @@ def main():
     ap.add_argument("--spence-nd", type=int, default=6)
     ap.add_argument("--spence-steps", type=int, default=8)
     ap.add_argument("--quick", action="store_true", help="small meshes (a smoke run)")
-    ap.add_argument("--smoke", action="store_true",
-                    help="smallest run (tests/test_examples.py): Hertz at nd = 2, a 2-step "
-                         "curve, only the published Spence case at nd = 2, a coarse BEM; "
-                         "writes beside --out, which it then requires")
+    harness.add_smoke_out(ap, "Hertz at nd = 2, a 2-step curve, only the published Spence "
+                              "case at nd = 2, a coarse BEM; writes beside --out",
+                          os.path.join(OUT, "validation.md"))
     ap.add_argument("--spence-only", action="store_true",
                     help="only the frictional stick-zone study (use another --out)")
     ap.add_argument("--bem", action="store_true",
@@ -325,13 +324,7 @@ def main():
                           "(contact/validation/halfspace_bem.py)")
     ap.add_argument("--bem-n", type=int, default=40, help="BEM grid n x n")
     ap.add_argument("--bem-steps", type=int, default=80, help="BEM indentation increments")
-    ap.add_argument("--out", default=None,
-                    help="markdown file (default runs/results/validation.md); plots go to "
-                         "validation/ beside it")
-    args = ap.parse_args()
-    if args.smoke and args.out is None:
-        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
-    args.out = args.out or os.path.join(OUT, "validation.md")
+    args = harness.parsed_smoke_out(ap, ap.parse_args())
     cases = SPENCE_CASES
     if args.quick:
         args.nds, args.curve_nd, args.spence_nd, args.spence_steps = "2,3", 2, 3, 3

@@ -131,16 +131,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nd", type=int, default=8)
     ap.add_argument("--steps", type=int, default=8)
-    ap.add_argument("--smoke", action="store_true",
-                    help="smallest run (tests/test_examples.py): nd 2, 2 increments, q/(F p) "
-                         "= 0.5 and 1.2; needs --out")
-    ap.add_argument("--out", default=None,
-                    help="markdown file (default runs/results/validation_block.md); the plot "
-                         "goes to validation/ beside it")
-    args = ap.parse_args()
-    if args.smoke and args.out is None:
-        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
-    args.out = args.out or os.path.join(HERE, "results", "validation_block.md")
+    harness.add_smoke_out(ap, "nd 2, 2 increments, q/(F p) = 0.5 and 1.2",
+                          os.path.join(HERE, "results", "validation_block.md"),
+                          "the plot goes to validation/ beside it")
+    args = harness.parsed_smoke_out(ap, ap.parse_args())
     ratios = RATIOS
     if args.smoke:
         args.nd, args.steps, ratios = 2, 2, SMOKE_RATIOS

@@ -128,16 +128,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nd", type=int, default=8)
     ap.add_argument("--beam-nd", type=int, default=8)
-    ap.add_argument("--smoke", action="store_true",
-                    help="smallest run (tests/test_examples.py): nd 2, theta = 10 and 35 deg, "
-                         "beam Nd 1 (faithful) and 2 (fast); needs --out")
-    ap.add_argument("--out", default=None,
-                    help="markdown file (default runs/results/validation_incline.md); the "
-                         "plot goes to validation/ beside it")
-    args = ap.parse_args()
-    if args.smoke and args.out is None:
-        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
-    args.out = args.out or os.path.join(HERE, "results", "validation_incline.md")
+    harness.add_smoke_out(ap, "nd 2, theta = 10 and 35 deg, beam Nd 1 (faithful) and 2 "
+                              "(fast)", os.path.join(HERE, "results", "validation_incline.md"),
+                          "the plot goes to validation/ beside it")
+    args = harness.parsed_smoke_out(ap, ap.parse_args())
     angles = ANGLES
     if args.smoke:
         args.nd, args.beam_nd, angles = 2, 2, SMOKE_ANGLES

@@ -199,7 +199,15 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Findings.**") == 13                    # every group's findings render
+    assert md.count("**Summary.**") == 13                     # every group's summary renders
+    assert "**Findings.**" not in md                          # no prose from the script
+    for section in md.split("\n## ")[1:]:                    # each summary is its rows' count
+        verdicts = [line.strip("|").split("|")[4].strip() for line in section.splitlines()
+                    if line.startswith("|") and not line.startswith(("| id ", "|---"))]
+        m = re.search(r"\*\*Summary\.\*\* (\d+) of (\d+) rows converged", section)
+        ran = [v for v in verdicts if not v.startswith(("skipped", "not run"))]
+        assert m and (int(m.group(1)), int(m.group(2))) == (
+            sum(v == "converged" for v in ran), len(ran)), section[:60]
     row = {c[0]: c for c in (table_rows(md, i)[0] for i in
                              ("F-fast-nd4-0.3", "load-press-300", "fvar-negative",
                               "fvar-syntax", "F-fast-relax-0.6"))}

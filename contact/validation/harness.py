@@ -315,3 +315,22 @@ def provenance_lines(ranks=1, make=None, argv=None, script=None):
             f"jobs: times are indicative); {p['ranks']} MPI rank(s).",
             f"- Command: `{p['command']}`" + (f" (`make {make}`)" if make else "") + ".",
             f"- Date: {p['date']}; commit {p['commit']}; PETSc {p['petsc']}."]
+
+
+def add_smoke_out(ap, smoke_help, default, plots="the plots go to validation/ beside it"):
+    """The --smoke and --out arguments of a runs/ script that records one markdown file
+    (default: `default`). Call parsed_smoke_out after parse_args."""
+    ap.add_argument("--smoke", action="store_true",
+                    help=f"smallest run (tests/test_examples.py): {smoke_help}; needs --out")
+    ap.add_argument("--out", default=None,
+                    help=f"markdown file (default {os.path.relpath(default, ROOT)}); {plots}")
+    ap.set_defaults(_record_default=default)
+
+
+def parsed_smoke_out(ap, args):
+    """args.out set (the default record unless given); a smoke run without --out is refused:
+    it must not overwrite runs/results/."""
+    if args.smoke and args.out is None:
+        ap.error("--smoke needs --out (it must not overwrite runs/results/)")
+    args.out = args.out or args._record_default
+    return args
