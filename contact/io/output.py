@@ -56,8 +56,8 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
                    "projected pressure's mean over the cell"),
         Field("cell_error_indicator", "cells/error_indicator", 1, "Cell",
               help="||u_h - P u_2h||_a on the cell: where the last refinement changed the "
-                   "solution, i.e. where the error lives (contact/analysis/estimate.py); NaN where "
-                   "there is no coarse level (one mesh level, load increments)"))
+                   "solution, i.e. where the error lives (contact/analysis/estimate.py); NaN "
+                   "where there is no coarse level (one mesh level, load increments)"))
 #: the contact nodes' fields (stress.contact_state)
 CONTACT = (Field("pressure", "contact/pressure", 1, "Node",
                  help="g = -sigma_nu >= 0, the loops' multiplier l"),

@@ -49,7 +49,7 @@ from contact.solvers.coulomb_globalisation import (DIVERGED_LINEAR_SOLVE,
                                                    DIVERGED_STAGNATION, iterate)
 from contact.solvers.coulomb_jacobian import CoulombJacobian
 from contact.solvers.loop import CONVERGED_ROUNDOFF, Loop
-from contact.solvers.newton_ksp import NewtonKSP
+from contact.solvers.newton_ksp import LinearCounts, NewtonKSP
 
 _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
@@ -58,7 +58,7 @@ _EV_RES = PETSc.Log.Event("Newton residual")
 EPS = float(np.finfo(PETSc.RealType).eps)
 
 
-class CoulombNewton(Loop):
+class CoulombNewton(LinearCounts, Loop):
     """Alart-Curnier semismooth Newton on the whole contact problem; options prefix
     ``-newton_``. A, b: the elasticity matrix (clamped rows eliminated, diagonal
     `diag_scale`) and load; cs: the contact set; gap: a contact Vec (a load increment's);
@@ -118,14 +118,6 @@ class CoulombNewton(Loop):
         self.linear = NewtonKSP(self.comm, self.prefix, "gmres", (1e-8, 0.0, 1000),
                                 right=True)
         self.ksp = self.linear.ksp
-
-    @property
-    def ksp_iterations(self):
-        return self.linear.iterations
-
-    @property
-    def pc_setups(self):
-        return self.linear.setups
 
     def check_options(self):
         if not 0.0 < self.ew_max < 1.0:

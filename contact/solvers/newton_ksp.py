@@ -84,3 +84,16 @@ class NewtonKSP:
             return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
         return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
                 f"{p}ksp_type preonly {p}pc_type {direct_pc}, or raise {p}ksp_max_it")
+
+
+class LinearCounts:
+    """What a Newton iteration whose linear solves are a NewtonKSP (`self.linear`) reports
+    of them (summary.json's ksp_total, the preconditioner set-ups)."""
+
+    @property
+    def ksp_iterations(self):
+        return self.linear.iterations
+
+    @property
+    def pc_setups(self):
+        return self.linear.setups

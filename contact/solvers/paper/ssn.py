@@ -30,7 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options
-from contact.solvers.newton_ksp import NewtonKSP
+from contact.solvers.newton_ksp import LinearCounts, NewtonKSP
 from contact.solvers.loop import DIVERGED_MAX_IT, Loop
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
@@ -40,7 +40,7 @@ _EV_MAT = PETSc.Log.Event("SSN assemble")
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 
 
-class SemismoothNewton(Loop):
+class SemismoothNewton(LinearCounts, Loop):
     """Newton on the prox fixed point of the Uzawa subproblem; options prefix ``-ssn_``.
     `solve(sub, x)` minimises the subproblem `sub` (contact/solvers/paper/subproblem.py) from x;
     `clamped` are the eliminated rows of A (diagonal `diag_scale`)."""
@@ -72,14 +72,6 @@ class SemismoothNewton(Loop):
         self.linear = NewtonKSP(self.comm, self.prefix, "cg", (1e-9, 1e-50, 2000),
                                 pc_type="gamg")
         self.ksp = self.linear.ksp
-
-    @property
-    def ksp_iterations(self):
-        return self.linear.iterations
-
-    @property
-    def pc_setups(self):
-        return self.linear.setups
 
     def check_options(self):
         if self.pc_lag < 1:
