@@ -141,7 +141,7 @@ def _size_check(comm, sc):
     n = resources.dofs(sc, el)
     if n is None:
         return ["size check (a mesh file: its size is the file's)"]
-    resources.check(comm, n, el, options.get("solver_mode", sc))
+    resources.check(comm, n, el, options.solver_mode(sc))
     return []
 
 

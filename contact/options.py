@@ -256,6 +256,20 @@ def _scene_value(scene, path):
     return d
 
 
+#: -solver_mode's values (solvers/driver.py's SOLVER_MODES: each one's option preset)
+SOLVER_MODE_NAMES = ("newton", "faithful", "fast")
+
+
+def solver_mode(scene=None):
+    """-solver_mode (or the scene's solver.mode), checked: the one reading of it that the
+    mesh, the element, the stiffness storage and the solve share."""
+    mode = get("solver_mode", scene)
+    if mode not in SOLVER_MODE_NAMES:
+        raise ValueError(f"-solver_mode must be one of {', '.join(SOLVER_MODE_NAMES)}, "
+                         f"got {mode!r}")
+    return mode
+
+
 def get(name, scene=None, opts=None):
     """The value of -name: the registry's default, then the scene's value (at the option's
     scene path), then the options database."""

@@ -57,6 +57,8 @@ class ContactProblem:
         self.error_indicator = None
         self._prolonged = None                # P u_2h while the fine level solves
         self.increments = []                  # the load increments' fields (output.py)
+        #: -error_estimate: the coarse levels solved tightly and their quantities kept
+        self.estimating = bool(options.get("error_estimate"))
         stage = PETSc.Log.Stage("Setup")
         stage.push()
         try:
@@ -125,7 +127,7 @@ class ContactProblem:
         below = self.level - lowest
         if levels == -1:
             levels = sum(lv.nd >= 4 for lv in h.levels[lowest:self.level]) \
-                if driver.solver_mode(self.scene) == "newton" else 0
+                if options.solver_mode(self.scene) == "newton" else 0
         if levels > below:
             note = (f"coarse-to-fine levels beyond {below} (the mesh hierarchy has "
                     f"{below} below Nd = {self.nd}: "
@@ -142,7 +144,7 @@ class ContactProblem:
         # a start needs no more than the coarse mesh's own accuracy: the Newton iteration of
         # a coarse level stops at -newton_rtol 1e-6 unless the user gave -newton_rtol; with
         # the error estimate (estimate.py) at COARSE_RTOL, far below the level differences
-        estimating = options.get("error_estimate")
+        estimating = self.estimating
         rtol = estimate.COARSE_RTOL if estimating else 1e-6
         with options.inserted({"newton_rtol": f"{rtol:g}"}):
             coarse = ContactProblem(sc, self.comm, levels - 1, h, j).solve()

@@ -53,3 +53,11 @@ def test_a_preset_is_removed_after_its_solve(comm):
     pr = solve(paper_scene(nd=1, uzawa_r=1e6), comm)
     assert pr.inner.name == "ssn" and pr.inner.pc_lag == 2 and pr.fp.warm_start == "xl"
     assert dict(opts.getAll()) == before
+
+
+def test_solver_modes_are_the_presets():
+    """The values -solver_mode accepts are those the driver has a preset for."""
+    from contact.solvers import driver
+    assert set(options.SOLVER_MODE_NAMES) == set(driver.SOLVER_MODES)
+    with pytest.raises(ValueError, match="-solver_mode must be one of newton, faithful, fast"):
+        options.solver_mode({"solver": {"mode": "quick"}})

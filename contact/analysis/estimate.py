@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from contact import fem, options
+from contact import fem
 from contact.analysis import residuals as res, stress
 from contact.validation import convergence
 
@@ -149,7 +149,7 @@ FRICTIONLESS = ("not estimated: frictionless, T = 0 (the value is rounding)")
 def of_run(problem, s):
     """(from_levels of the coarse runs and this run, words) for summary.json: this run's
     QUANTITIES from its summary s (computed there once)."""
-    if not options.get("error_estimate"):
+    if not problem.estimating:
         return None, "no estimate: -error_estimate 0"
     cr = s["contact_result"] or {}
     this = {"max_displacement": s["max_displacement"], "energy": s["energy"],

@@ -36,7 +36,7 @@ def element_of(scene):
     mesh hierarchy is built for its nodes: problem.py asks here first.)"""
     el = options.get("element", scene)
     if el == "auto":
-        faithful = options.get("solver_mode", scene) == "faithful"
+        faithful = options.solver_mode(scene) == "faithful"
         el = "q1" if faithful or scene["material"]["poisson"] < AUTO_LOCKFREE_NU else "q2p1"
     if el not in fem.ELEMENTS:
         raise SceneError(f"-element must be auto, {', '.join(fem.ELEMENTS)}, got {el!r}")

@@ -38,15 +38,6 @@ SOLVER_MODES = {
 }
 
 
-def solver_mode(scene):
-    """-solver_mode (or the scene's solver.mode), checked."""
-    mode = options.get("solver_mode", scene)
-    if mode not in SOLVER_MODES:
-        raise ValueError(f"-solver_mode must be one of {', '.join(SOLVER_MODES)}, "
-                         f"got {mode!r}")
-    return mode
-
-
 class Loops:
     """Fixed point (F > 0) over Uzawa over the inner solver (APG or SSN), from the options
     (the registry's defaults, the scene's solver values, the command line)."""
@@ -187,7 +178,7 @@ def solve_contact(pr, sol, b, gap, start=None, g0=None, path=None):
     """One static contact solve for load b and gap: pr.x, sol.l, sol.g set; start: (l0, g0)
     of a coarse-to-fine start; g0: the fixed point's start (the increment before); path:
     its LoadPath (the Newton iteration's load continuation; default: the static load's)."""
-    sol.solver_mode = solver_mode(pr.scene)
+    sol.solver_mode = options.solver_mode(pr.scene)
     newton = sol.solver_mode == "newton"
     with options.inserted(SOLVER_MODES[sol.solver_mode]):
         loops = NewtonLoops(pr.disc, pr.solvers, b, gap, pr.contact_held,

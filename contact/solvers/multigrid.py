@@ -68,7 +68,7 @@ def blocked(scene, level_index, element):
     Galerkin setting (-newton_pc_mg_galerkin)."""
     opts = PETSc.Options()
     if (level_index == 0 or element != "q1"
-            or options.get("solver_mode", scene) != "newton"
+            or options.solver_mode(scene) != "newton"
             or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
     for prefix in PREFIXES:
