@@ -56,7 +56,7 @@ def main(argv=None):
     ap.add_argument("--q2", type=int, nargs="+", default=[8, 16])
     ap.add_argument("--cost-nd", type=int, nargs="+", default=[16, 32, 40],
                     help="q1 sizes timed with and without the estimate (1 rank)")
-    ap.add_argument("--repeat", type=int, default=3, help="timed runs per cost case")
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs per cost case")
     ap.add_argument("--hertz-nd", type=int, default=2, help="the Hertz block's gmsh nd")
     ap.add_argument("--hertz-refine", type=int, default=2,
                     help="refinements of the estimating Hertz run (the reference: one more)")
