@@ -256,6 +256,8 @@ def _scene_value(scene, path):
     return d
 
 
+#: the elements' names (-element; fem/element.py's ELEMENTS describes each)
+ELEMENT_NAMES = ("q1", "bbar", "q2", "q2p1")
 #: -solver_mode's values (solvers/driver.py's SOLVER_MODES: each one's option preset)
 SOLVER_MODE_NAMES = ("newton", "faithful", "fast")
 

@@ -15,7 +15,6 @@ import yaml
 from petsc4py import PETSc
 
 from contact import expression, options
-from contact.fem import ELEMENTS
 
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
@@ -200,8 +199,9 @@ def validate(scene, sources=None):
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
     el = mesh.get("element", "auto")
-    if el != "auto" and el not in ELEMENTS:
-        raise SceneError(f"element must be auto, {', '.join(ELEMENTS)}, got {el!r}")
+    if el != "auto" and el not in options.ELEMENT_NAMES:
+        raise SceneError(f"element must be auto, {', '.join(options.ELEMENT_NAMES)}, got "
+                         f"{el!r}")
     _material(scene["material"])
     _rest(scene)
     for path in EXPRESSIONS:
@@ -366,7 +366,7 @@ def turned(scene, axis, degrees):
     and Coulomb's law being invariant, its answer is u_turned(R X) = R u(X). Returns the
     validated scene and R."""
     import numpy as np
-    from contact.fem.frame import rotation
+    from contact.geometry import rotation
     sc, R = copy.deepcopy(scene), rotation(axis, degrees)
     if "rotate" in sc["mesh"]:
         raise SceneError("turned: the scene's mesh is already rotated")

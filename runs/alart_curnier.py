@@ -30,7 +30,7 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact import scene as scenes  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.solvers.solution import Solution

@@ -7,7 +7,7 @@
    computed force; Newton steps and Krylov iterations.
 2. The paper's beam (F = 0.3) at nu = 0.3 and 0.4999: max |u| with each element over the
    same nodes (q2 and q2p1 at N = Nd / 2 elements), its error against the Richardson limit
-   (contact/validation/convergence.py) of the bbar sequence, and the solve's time.
+   (contact/analysis/convergence.py) of the bbar sequence, and the solve's time.
 3. The paper's beam as it is (nu = 0.277), each element as a user runs it (`mpirun -n 2
    python -m contact -nd N -element E`, whole process): max |u|'s error against the
    continuum value of `make report` (runs/results/report/data.json), against time.
@@ -40,11 +40,12 @@ petsc4py.init(sys.argv[:1])
 from petsc4py import PETSc  # noqa: E402
 
 from contact import options
-from contact.analysis import residuals  # noqa: E402
+from contact.solvers import residuals  # noqa: E402
 from contact.solvers.loop import ConvergenceError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import validate  # noqa: E402
-from contact.validation import convergence, harness, theory as th  # noqa: E402
+from contact.analysis import convergence  # noqa: E402
+from contact.validation import harness, theory as th  # noqa: E402
 from contact.validation.hertz import R_SPHERE, analyse, approach_correction, hertz_scene
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -11,7 +11,7 @@ them), whole-process time, side by side. Records runs/results/estimate.md.
 
 Hertz (runs/scenes/hertz.yaml, the quarter model's contact force): the gmsh block at
 --hertz-nd refined --hertz-refine times (levels nd, 2 nd, ...) estimates its finest value;
-the reference is a run refined once more, extrapolated by contact/validation/convergence.py
+the reference is a run refined once more, extrapolated by contact/analysis/convergence.py
 (its error: the difference to the extrapolation one level coarser); the closed form is
 shown beside, with the finite block's model error.
 
@@ -27,7 +27,8 @@ import numpy as np
 
 from contact import expression
 from contact import scene as scenes
-from contact.validation import convergence, harness, theory
+from contact.analysis import convergence
+from contact.validation import harness, theory
 
 ROOT = harness.ROOT
 #: the band the issue asks the effectivity to stay in

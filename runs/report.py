@@ -15,7 +15,7 @@ What it does:
   2. total error: the default solver as a user runs it (mpirun -n 2 python -m contact
      -nd N) for Nd = 4 .. 80; max |u|, the contact force N and the energy J against their
      continuum values, extrapolated from the finest runs with an error estimate
-     (contact/validation/convergence.py); the cost (Nd, whole-process time) of 10 %, 1 %
+     (contact/analysis/convergence.py); the cost (Nd, whole-process time) of 10 %, 1 %
      and 0.1 % in each; then the same with -element q2 (N = 1 .. 24), both elements
      against one continuum value per quantity (the extrapolation with the smaller error
      estimate), with the plot of both;
@@ -43,7 +43,8 @@ import time
 
 import numpy as np
 
-from contact.validation import convergence, harness
+from contact.analysis import convergence
+from contact.validation import harness
 
 ROOT = harness.ROOT
 #: the quantities of the total-error study: key, name, value from summary.json
@@ -665,7 +666,7 @@ def total_md(tot):
     L += ["", "Each continuum value is extrapolated from the runs below (contact/validation/"
           "convergence.py): q = q* + C h^p through the finest triple of meshes that double, "
           "h = 1/Nd; the same from the next-finest doubling triple gives the second estimate, "
-          "and their difference is the error estimate. tests/validation/test_convergence.py checks the "
+          "and their difference is the error estimate. tests/analysis/test_convergence.py checks the "
           "extrapolation against closed forms.", "",
           "### The runs", ""]
     return L + runs_table(tot)

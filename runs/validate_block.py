@@ -27,7 +27,7 @@ petsc4py.init(sys.argv[:1])
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact import scene as scenes  # noqa: E402
 from contact.solvers.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
@@ -168,7 +168,7 @@ def main():
           f"F R_nu) / max(F R_nu) over the contact nodes (Coulomb's cone: <= 0 up to the "
           f"solver's tolerance, 0 at a slipping node); fixed-point "
           f"iterations (summed over increments); the largest residual of "
-          f"contact/analysis/residuals.py; time. Incremental: press over t in [0, 1/4], then shear "
+          f"contact/solvers/residuals.py; time. Incremental: press over t in [0, 1/4], then shear "
           f"over [1/4, 1], {args.steps} increments.", "",
           "| q/(F p) | static | stick | slip | cone | FP | residual | s | press, then shear "
           "| stick | slip | cone | FP | residual | s |",

@@ -27,9 +27,9 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contact.io import layout, output
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact import scene as scenes  # noqa: E402
-from contact.fem.frame import basis, rotation  # noqa: E402
+from contact.geometry import basis, rotation  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
 from contact.validation import harness  # noqa: E402
@@ -161,7 +161,7 @@ def main():
           f"|R_tau| / sin(theta) (R = A u - b on the contact nodes: the foundation's force on "
           f"the body), the angle between R_tau and the up-slope direction, the fraction of "
           f"contact nodes that stick, fixed-point iterations, the largest residual of "
-          f"contact/analysis/residuals.py, time.", "",
+          f"contact/solvers/residuals.py, time.", "",
           "| theta, deg | tan(theta) | statics | run | N / cos | R_tau / sin | angle, deg "
           "| stick | FP | residual | s |",
           "|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|"]

@@ -312,7 +312,7 @@ def test_petsc_gpu_script():
 def test_alart_curnier_prototype():
     """runs/alart_curnier.py (the whole-problem Newton prototype) at Nd = 2: converges in a
     few Newton steps to the package's answer (fast mode at tolerances 1e-11), and meets the
-    contact conditions checked by contact/analysis/residuals.py."""
+    contact conditions checked by contact/solvers/residuals.py."""
     out, _ = script("alart_curnier.py", "--smoke", timeout=120)
     steps = int(re.search(r"Alart-Curnier Newton (\d+) steps", out).group(1))
     assert 2 <= steps <= 15

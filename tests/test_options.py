@@ -55,6 +55,11 @@ def test_a_preset_is_removed_after_its_solve(comm):
     assert dict(opts.getAll()) == before
 
 
+def test_element_names_are_the_elements():
+    from contact import fem
+    assert options.ELEMENT_NAMES == tuple(fem.ELEMENTS)
+
+
 def test_solver_modes_are_the_presets():
     """The values -solver_mode accepts are those the driver has a preset for."""
     from contact.solvers import driver

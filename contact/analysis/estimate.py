@@ -4,7 +4,7 @@ The coarse-to-fine start solves the scene on Nd/4, Nd/2, ... before Nd (problem.
 level records the quantities a user reads (QUANTITIES: max |u|, the contact force's normal
 and tangential resultants, the energy J). In the asymptotic range q(h) = q* + C h^p, h =
 1/Nd, and three levels give q*, p and C (generalised Richardson extrapolation,
-contact/validation/convergence.py): the estimated error of this run's value is |q(Nd) - q*|
+contact/analysis/convergence.py): the estimated error of this run's value is |q(Nd) - q*|
 and the extrapolated value q* is printed beside it; with four levels or more, the
 extrapolation from the next triple gives q*'s own error estimate (their difference).
 Where the levels are not in the asymptotic range (the differences change sign or do not
@@ -19,8 +19,9 @@ import math
 import numpy as np
 
 from contact import fem
-from contact.analysis import residuals as res, stress
-from contact.validation import convergence
+from contact.analysis import stress
+from contact.solvers import residuals as res
+from contact.analysis import convergence
 
 #: summary.json key -> words
 QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",

@@ -37,8 +37,8 @@ from petsc4py import PETSc
 
 from contact import fem
 from contact.fem import element
-from contact.analysis import residuals as res
-from contact.fem.frame import basis
+from contact.solvers import residuals as res
+from contact.geometry import basis
 
 #: stress components, in this order (VTK's symmetric tensor order)
 COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")

@@ -2,7 +2,7 @@
 vectors (assembly.py), the contact frame and the contact set, the discrete problem of a
 scene (discretisation.py) and its admissibility check. `contact.fem` names the elements'
 and the assembly's functions directly (as DOLFINx's `dolfinx.fem` does)."""
-from contact.fem.element import (ELEMENTS, CHUNK, chunk, lame, Q2_REF, Q2_ROLE, q2_shape,
+from contact.fem.element import (ELEMENTS, CHUNK, chunk, lame, q2_shape,
                                  NODES, QUADRATIC, PRESSURES, geometry, element_stiffness,
                                  element_stiffness_shapes, pressure_basis,
                                  projected_divergence, element_volume_weights, face_weights,
@@ -15,7 +15,7 @@ from contact.fem.assembly import (PATTERN_CHUNK, create_matrix, assemble_stiffne
                                   load_lifts_off, eliminate_dirichlet, configure_elasticity,
                                   is_blocked, set_spd)
 
-__all__ = ["ELEMENTS", "CHUNK", "chunk", "lame", "Q2_REF", "Q2_ROLE", "q2_shape",
+__all__ = ["ELEMENTS", "CHUNK", "chunk", "lame", "q2_shape",
            "NODES", "QUADRATIC", "PRESSURES", "geometry", "element_stiffness",
            "element_stiffness_shapes", "pressure_basis", "projected_divergence",
            "element_volume_weights", "face_weights", "q2_face_weights",

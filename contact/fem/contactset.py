@@ -25,7 +25,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact import expression, fem
-from contact.fem.frame import axis_of, basis
+from contact.geometry import axis_of, basis
 
 FORWARD = PETSc.ScatterMode.FORWARD
 REVERSE = PETSc.ScatterMode.REVERSE

@@ -15,7 +15,8 @@ from mpi4py import MPI
 
 from contact import fem, mesh, options
 from contact.fem.contactset import ContactSet
-from contact.fem.frame import ContactFrame, basis
+from contact.fem.frame import ContactFrame
+from contact.geometry import basis
 from contact.scene import AXES, SceneError, foundation_normal
 
 DEFAULT_RAMP = (0.0, 1.0)

@@ -39,7 +39,7 @@ Elements (-element, ELEMENTS):
 """
 import numpy as np
 
-from contact.mesh import HEX_REF, MeshError, cross3
+from contact.mesh import HEX_REF, Q2_REF, MeshError, cross3
 
 _G = 1.0 / np.sqrt(3.0)
 _GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
@@ -95,13 +95,6 @@ _DNT = np.ascontiguousarray(_DN.transpose(0, 2, 1))    # (g, 3, a)
 _N = _hex_shape_values()
 _W8 = np.ones(8)
 
-#: the 27 nodes of the quadratic hexahedron (q2): reference coordinates, node
-#: 9 i + 3 j + k at (xi, eta, zeta) = (i - 1, j - 1, k - 1)
-Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],
-                  dtype=float)
-#: a q2 node's role on a face: the number of its zero reference coordinates (0 corner,
-#: 1 edge midpoint, 2 face centre, 3 the cell centre)
-Q2_ROLE = np.count_nonzero(Q2_REF == 0.0, axis=1)
 
 
 def _lagrange2(t):

@@ -15,7 +15,7 @@ surface, gathered for them; nothing of the volume).
   load_path.png             quasi-static runs: normal and tangential resultants and the
                             stick / slip areas against the load parameter t
 The contact face is drawn in the foundation's plane (coordinates along t1, t2 of
-frame.basis: x and y for the paper's foundation); faces touching a clamped node (not a
+geometry.basis: x and y for the paper's foundation); faces touching a clamped node (not a
 contact node) are hatched. A contact zone much smaller than the face is zoomed into.
 Units are the scene's: lengths those of the mesh, stresses those of E.
 """
@@ -30,7 +30,7 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
-from contact.fem.frame import basis  # noqa: E402
+from contact.geometry import basis  # noqa: E402
 
 STATUS_COLORS = ("#c8c8c8", "#2c7bb6", "#d7191c")       # separated, stick, slip
 STATUS_NAMES = ("separated", "stick", "slip")

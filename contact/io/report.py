@@ -4,7 +4,8 @@ import resource
 import petsc4py
 from petsc4py import PETSc
 
-from contact.analysis import estimate, residuals as res, stress
+from contact.analysis import estimate, stress
+from contact.solvers import residuals as res
 from contact.solvers.loop import CONVERGED_ROUNDOFF
 
 

@@ -33,7 +33,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
-from contact.mesh import HEX_FACES, HEX_REF, MeshError
+from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
 
 #: the automatic k keeps at least this many coarse cells per rank
 MIN_CELLS_PER_RANK = 16
@@ -358,8 +358,8 @@ class QuadraticCells:
     """The q2 elements on level `fine` (the regular refinement of level `coarse`): the
     coarse cells, each with its 27 nodes among the fine vertices.
 
-        conn   (ne, 27) local fine vertex indices in fem.Q2_REF order
-        roles  (nv,) each local fine vertex's fem.Q2_ROLE (0 corner, 1 edge midpoint,
+        conn   (ne, 27) local fine vertex indices in Q2_REF order
+        roles  (nv,) each local fine vertex's Q2_ROLE (0 corner, 1 edge midpoint,
                2 face centre, 3 element centre)
         octant (nc_fine,) for each fine cell (child 8 p + i of element p), the position
                (0..7, o = 4 ox + 2 oy + oz) of the eighth of element p it fills: its
@@ -370,7 +370,6 @@ class QuadraticCells:
     trilinear map), which must coincide (else MeshError)."""
 
     def __init__(self, coarse, fine):
-        from contact.fem import Q2_REF, Q2_ROLE
         ncc, ncf = coarse.conn.shape[0], fine.conn.shape[0]
         if ncf != 8 * ncc:
             raise MeshError(f"level {fine.nd} is not the regular refinement of level "
@@ -410,7 +409,6 @@ class QuadraticCells:
         """The fine quadrilaterals (4 n, 4) (cyclic, local fine vertices) of face k
         (HEX_FACES) of elements `cells` (n,): a gmsh physical group's faces, marked on the
         element mesh, on the node mesh."""
-        from contact.fem import Q2_REF
         quads = np.empty((6, 4, 4), dtype=np.intp)         # per face k: 4 quads of positions
         index = {tuple(r): q for q, r in enumerate(Q2_REF.astype(int))}
         for f in range(6):

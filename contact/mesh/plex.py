@@ -22,6 +22,13 @@ HEX_REF = np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, -1], [1, -1, -1],
 #: the 6 faces of the hexahedron as cyclic vertex quadruples (local cone positions)
 HEX_FACES = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 3, 5, 4],
                       [1, 7, 6, 2], [0, 4, 7, 1], [3, 2, 6, 5]], dtype=np.intp)
+#: the 27 nodes of the quadratic hexahedron (q2): reference coordinates, node
+#: 9 i + 3 j + k at (xi, eta, zeta) = (i - 1, j - 1, k - 1)
+Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],
+                  dtype=float)
+#: a q2 node's role on a face: the number of its zero reference coordinates (0 corner,
+#: 1 edge midpoint, 2 face centre, 3 the cell centre)
+Q2_ROLE = np.count_nonzero(Q2_REF == 0.0, axis=1)
 
 
 class MeshError(ValueError):
@@ -291,7 +298,7 @@ def labelled_cell_faces(dm, label_name):
 def rotate_coordinates(dm, coords, axis, degrees, origin=(0.0, 0.0, 0.0)):
     """Turn the mesh by `degrees` about the line through `origin` along `axis` (scene
     mesh.rotate): the DM's coordinates and the local array `coords` (returned anew)."""
-    from contact.fem.frame import rotation
+    from contact.geometry import rotation
     R, o = rotation(axis, degrees), np.asarray(origin, dtype=float)
     g = dm.getCoordinates()
     a = g.getArray(readonly=True).reshape(-1, 3)

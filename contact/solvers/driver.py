@@ -15,7 +15,7 @@ from petsc4py import PETSc
 
 from contact import fem, options
 from contact.solvers import multigrid
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact.solvers.paper.apg import APG
 from contact.solvers.coulomb import CoulombNewton
 from contact.fem.discretisation import DEFAULT_RAMP
@@ -256,7 +256,7 @@ def solve_incremental(pr, sol, n, on_increment=None):
 def check_solution(pr, sol, b, gap):
     """The loops stop on a small change of their iterate, which a vanishing step also
     gives: check the answer itself. Raises ResidualCheckError when a residual of
-    contact/analysis/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
+    contact/solvers/residuals.py exceeds -check_tol (default 1e-3; 0 = no check)."""
     tol = options.get("check_tol", pr.scene)
     sol.residuals = res.residuals(sol, pr.x, b=b, gap=gap)
     worst = max(sol.residuals, key=sol.residuals.get)

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact import scene as scenes
 from contact.validation import theory as th
 from contact.validation.harness import ROOT

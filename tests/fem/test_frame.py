@@ -16,9 +16,9 @@ from conftest import (block_scene, gather, only_in_parallel, paper_scene, rel_er
                       skip_in_parallel, solve)
 from petsc4py import PETSc
 
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 from contact import scene as scenes
-from contact.fem.frame import axis_of, basis, rotation
+from contact.geometry import axis_of, basis, rotation
 from contact.scene import SceneError
 
 AXIS, DEGREES = [1.0, 2.0, 3.0], 25.0

@@ -24,6 +24,7 @@ from test_independent_reference import (TOL, _block, _compare, _reference, _rel,
 
 from contact import fem
 from contact.analysis import stress
+from contact.mesh import Q2_REF
 from contact.validation import independent as ind
 
 #: the reference's local node q = qx + 3 qy + 9 qz is the package's 9 qx + 3 qy + qz
@@ -53,7 +54,7 @@ def _package_K(xyz, pk, E, nu):
 
 
 def test_shape_functions_interpolate_and_sum_to_one():
-    N, dN = fem.q2_shape(fem.Q2_REF)
+    N, dN = fem.q2_shape(Q2_REF)
     assert np.allclose(N, np.eye(27), atol=1e-15)
     pts = np.random.default_rng(0).uniform(-1, 1, (10, 3))
     N, dN = fem.q2_shape(pts)

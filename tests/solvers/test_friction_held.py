@@ -73,7 +73,7 @@ def test_stick_zone_shrinks_toward_the_limit(comm):
     not merely small. The test checks both halves of that claim: u_tau = 0 and the
     reaction strictly inside the cone. On 2 ranks each load is also solved on COMM_SELF
     and the canonical displacements must agree."""
-    from contact.analysis import residuals as res
+    from contact.solvers import residuals as res
     G = E / (2 * (1 + NU))
     slips, fractions = [], []
     for ratio in (0.2, 0.6, 0.95):

@@ -161,7 +161,7 @@ def test_theta_newton_step_where_the_semismooth_direction_ascends():
     and proximal-gradient steps of length 1/(r w) could not move it (DIVERGED_MAX_IT).
     The Newton step of Theta on the stuck nodes' face descends; statics check the answer:
     N = cos(20 deg) and the friction resultant sin(20 deg)."""
-    from contact.analysis import residuals as res
+    from contact.solvers import residuals as res
     th, ph = np.radians(20.0), np.radians(10.0)
     sc = block_scene({"contact": {"plane": ["z", 0.0], "type": "contact"}}, nd=4,
                      friction=0.5, mode="fast")

@@ -5,7 +5,7 @@ import numpy as np
 from petsc4py import PETSc
 from conftest import block_scene, gather, paper_scene, rel_err, solve
 
-from contact.analysis import residuals as res
+from contact.solvers import residuals as res
 
 PRESSED = {
     "sym_x": {"plane": ["x", 0.0], "type": "dirichlet", "components": ["x"]},

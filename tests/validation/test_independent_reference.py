@@ -22,7 +22,7 @@ from conftest import block_scene, gather, paper_scene, solve
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
-from contact.analysis import residuals
+from contact.solvers import residuals
 from contact.validation import independent as ind
 
 #: the paper's inner solver (FISTA), converged far below the comparison tolerance

@@ -1,11 +1,11 @@
-"""contact/validation/convergence.py against sequences whose limit is known in closed form:
+"""contact/analysis/convergence.py against sequences whose limit is known in closed form:
 Richardson extrapolation recovers q* and p exactly for q* + C h^p (doubling and
 non-doubling meshes), its error estimate covers the true error when a higher-order term
 is present, an oscillating sequence is not extrapolated, and the cost of an accuracy is
 read off (and projected) as documented."""
 import pytest
 
-from contact.validation import convergence as cv
+from contact.analysis import convergence as cv
 
 
 def seq(nds, f):

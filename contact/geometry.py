@@ -1,0 +1,37 @@
+"""Small vector geometry shared by the scene, the mesh and the contact frame: unit vectors,
+the coordinate axis of a normal, an orthonormal basis with a given normal, rotations."""
+import math
+
+import numpy as np
+
+
+def unit(v):
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def axis_of(normal, tol=1e-12):
+    """k when the unit `normal` is +e_k, else None."""
+    n = unit(normal)
+    k = int(np.argmax(np.abs(n)))
+    return k if n[k] > 0 and np.all(np.abs(np.delete(n, k)) <= tol) else None
+
+
+def basis(normal):
+    """Q (3, 3) with rows t1, t2, n: t1 the coordinate axis most nearly orthogonal to n,
+    projected on the plane (exactly e_c when n_c = 0), t2 = n x t1."""
+    n = unit(normal)
+    c = int(np.argmin(np.abs(n)))
+    t1 = np.eye(3)[c] - n[c] * n
+    t1 /= np.linalg.norm(t1)
+    if abs(n[c]) == 0.0:
+        t1 = np.eye(3)[c]
+    return np.vstack([t1, np.cross(n, t1), n])
+
+
+def rotation(axis, degrees):
+    """The rotation matrix R (3, 3) of `degrees` about `axis` (right hand; Rodrigues)."""
+    k = unit(axis)
+    th = math.radians(degrees)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
