@@ -42,7 +42,7 @@ def run(comm=None):
     options.check(opts, sc)
     outdir = opts.getString("output_dir",
                             os.path.join("runs", "out", f"{sc['name']}-nd{sc['mesh']['nd']}"))
-    formats = output.parse_formats(options.get("output_formats"))
+    formats = output.requested_formats()
     skipped = _size_check(comm, sc)
     if formats:
         output.prepare_dir(comm.tompi4py(), outdir)

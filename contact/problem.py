@@ -52,6 +52,8 @@ class ContactProblem:
         t0 = time.perf_counter()
         self.scene, self.comm = scene, comm or PETSc.COMM_WORLD
         self.c2f_levels = c2f_levels
+        #: the coarse-to-fine levels asked for (-c2f_levels, the scene's, or c2f_levels)
+        self.c2f_asked = self._c2f_asked()
         self.coarse_runs = []
         #: estimate.cell_indicator: (eta per local cell, its total, ||u||_a), or None
         self.error_indicator = None
@@ -63,7 +65,7 @@ class ContactProblem:
         stage.push()
         try:
             if hierarchy is None:
-                hierarchy = MeshHierarchy(self.scene, self.comm, self._c2f_asked(),
+                hierarchy = MeshHierarchy(self.scene, self.comm, self.c2f_asked,
                                           quadratic=element_of(self.scene) in fem.QUADRATIC)
             self.hierarchy = hierarchy
             self.level = level % len(hierarchy.levels)
@@ -121,7 +123,7 @@ class ContactProblem:
         one below, as many levels as asked: -1, automatic, is every coarser level with
         Nd >= 4 in the newton mode and none for the loops), prolong x, l, g to this mesh
         (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None."""
-        levels = self._c2f_asked()
+        levels = self.c2f_asked
         h = self.hierarchy
         lowest = 1 if h.quadratic else 0          # q2's nodes: a level above its elements'
         below = self.level - lowest

@@ -28,7 +28,7 @@ def check(disc):
     free, so the foundation must hold the body (the Newton iteration's first step then
     closes every contact node: from an open gap nothing else would hold it)."""
     check_prescribed_on_contact(disc)
-    return check_rigid_motion(disc)
+    return check_rigid_motion(disc, options.get("statics_check"))
 
 
 def check_prescribed_on_contact(disc):
@@ -47,7 +47,7 @@ def check_prescribed_on_contact(disc):
                          "contact.gap)")
 
 
-def check_rigid_motion(disc):
+def check_rigid_motion(disc, statics=True):
     """SceneError when the dirichlet parts and the foundation leave a rigid-body motion
     free, or when only the foundation holds the body and the load pulls it away.
 
@@ -66,8 +66,9 @@ def check_rigid_motion(disc):
         tangential = cpts is not None and fem.tangential_modes(Q, n)
         if tangential and disc.cs.has_friction:
             held = (Q, frame)
-            check_friction_statics(disc, Q, unheld[1])
-            check_tipping(disc, *unheld[1:])
+            if statics:                                  # (-statics_check)
+                check_friction_statics(disc, Q, unheld[1])
+                check_tipping(disc, *unheld[1:])
         else:
             why = ""
             if cpts is not None:
@@ -99,9 +100,7 @@ def check_friction_statics(disc, Q, Q0):
     T along the free translations (those in span Q, the motions friction must hold)
     must not exceed F_max N, N the normal load pressing the body on the foundation;
     otherwise the body slides (no static equilibrium). Necessary, not sufficient
-    (moments about the normal are left to the solver). -statics_check 0 skips it."""
-    if not options.get("statics_check"):
-        return
+    (moments about the normal are left to the solver). -statics_check 0 skips it (check)."""
     n = disc.normal
     e_n = np.r_[n, 0.0, 0.0, 0.0]
     if np.linalg.norm(e_n - Q0 @ (Q0.T @ e_n)) > 1e-6:
@@ -150,8 +149,6 @@ def check_tipping(disc, Q0, frame):
     rigid rotation about the edge is free and the Newton iteration would follow it).
     Checked for a flat face only (friction's moments vanish there); necessary, not
     sufficient. SceneError names the step and the distance outside."""
-    if not options.get("statics_check"):
-        return
     from scipy.spatial import ConvexHull, QhullError
     mpi = disc.comm.tompi4py()
     n = np.asarray(disc.normal, dtype=float)

@@ -141,12 +141,18 @@ def gather_contact(problem, x=None):
 
 
 # -- the states written: the solution, and each load increment of a quasi-static run ------
+def requested_formats():
+    """-output_formats, parsed (the one reading of it: the command line and the increments'
+    recorder)."""
+    return parse_formats(options.get("output_formats"))
+
+
 def increment_recorder():
     """The monitor handed to driver.solve: (record, increments), record(sol, t, factors, v,
     b, gap) keeping each increment's contact fields and resultants (contact-sized), and its
     displacement v (u - u_D, a copy: one Vec per increment) when solution.h5 is asked for,
     in the list increments; record is None when -output_formats asks for no file."""
-    formats = parse_formats(options.get("output_formats"))
+    formats = requested_formats()
     increments = []
     if not formats:
         return None, increments

@@ -73,8 +73,7 @@ class NewtonLoops:
     def __init__(self, disc, solvers, b, gap, contact_held=False, friction_held=False,
                  path=None):
         self.cs = disc.cs
-        split = solvers.pressure_split(options.get("newton_pressure_split", disc.scene),
-                                       PETSc.Options().hasName("newton_pc_type"))
+        split = solvers.pressure_split(pc_given=PETSc.Options().hasName("newton_pc_type"))
         self.inner = CoulombNewton(disc.A, b, disc.cs, disc.clamped, disc.diag_scale,
                                    solvers.multigrid, close_first=contact_held,
                                    rho_diag=disc.contact_diagonal, split=split,
@@ -130,8 +129,7 @@ def solve_linear(pr, sol):
     body, GMRES on the mixed u-p system (mixed.py; -newton_pressure_split, unless
     -elastic_pc_type is given)."""
     sol.mode = "linear"
-    split = pr.solvers.pressure_split(options.get("newton_pressure_split", pr.scene),
-                                      PETSc.Options().hasName("elastic_pc_type"))
+    split = pr.solvers.pressure_split(pc_given=PETSc.Options().hasName("elastic_pc_type"))
     if split is None:
         mg = pr.solvers.multigrid
         ksp = multigrid.elasticity_ksp(pr.A, mg=mg)
