@@ -14,6 +14,7 @@ on the iteration `nt` (a CoulombNewton): its residual (`nt._state`), Jacobian
 from mpi4py import MPI
 
 from contact.solvers.loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO
+from contact.solvers.newton_ksp import halving
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
 DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
@@ -230,14 +231,16 @@ def stage(nt, x, scale, it):
                 nt.dx.copy(dxw)
                 save_dir = False
             t, monotone = 1.0, nt.watchdog == 0
-        while True:
+        ref = nrw if not monotone else nr
+
+        def trial(t):
             nt.xt.waxpy(t, nt.dx, x)
-            nr_t, st_t = nt._state(nt.xt, nt.r)
-            decrease = nr_t <= (1.0 - 1e-4 * t) * (nrw if not monotone else nr)
-            if decrease or not monotone or t <= nt.linesearch_min:
-                break
-            t *= 0.5
-            nt.line_search_cuts += 1
+            return nt._state(nt.xt, nt.r)
+        t, (nr_t, st_t), cuts = halving(
+            trial, lambda t, v: not monotone or v[0] <= (1.0 - 1e-4 * t) * ref,
+            nt.linesearch_min, t)
+        nt.line_search_cuts += cuts
+        decrease = nr_t <= (1.0 - 1e-4 * t) * ref
         bests.append(min(bests[-1], nr_t))
         x.swap(nt.xt)
         nr_old, nr, st = nr, nr_t, st_t

@@ -1,4 +1,5 @@
-"""The linear solves of a Newton iteration: one machinery for both of ours.
+"""The machinery of a Newton iteration, one for both of ours: its linear solves and its
+step-length search.
 
 The default solver (coulomb.py, prefix -newton_) and the fast mode's inner solver
 (paper/ssn.py, prefix -ssn_) each solve one linear system per Newton step with a KSP of
@@ -11,16 +12,31 @@ changes only a little. NewtonKSP holds what they share:
     operators, the sets it was built for) and the system solved again; the fresh set-ups
     (`setups`) and Krylov iterations (`iterations`) are counted;
   - `hint(direct)`: why a solve failed, in PETSc's words, and what to try.
+  - `halving(trial, accept, t_min)`: the step-length search, t = 1, 1/2, 1/4, ... until a
+    trial step is accepted or t <= t_min.
 When to reuse is each iteration's own policy (the default solver: until a solve takes more
 than -newton_pc_rebuild_its iterations; SSN: while the active, stick and slip sets are
-those it was built for, -ssn_pc_lag): it is the `reuse` argument. The globalisations stay
-each iteration's own too: their merit functions differ (the default solver watches the
-residual norm of the whole problem, SSN decreases the subproblem's Theta).
+those it was built for, -ssn_pc_lag): it is the `reuse` argument. What a step must do to
+be accepted is each iteration's own too, the `accept` argument: their merit functions
+differ (the default solver: Armijo on the residual norm of the whole problem, under its
+watchdog; SSN: a decrease of the subproblem's Theta beyond its rounding).
 """
 from petsc4py import PETSc
 
 from contact.solvers import multigrid
 from contact.solvers.loop import ksp_reason_name
+
+
+def halving(trial, accept, t_min, t=1.0):
+    """The step-length search: value = trial(t) for t, t/2, t/4, ... until accept(t, value)
+    or t <= t_min (that step taken as it is). Returns (t, value, halvings)."""
+    cuts = 0
+    while True:
+        value = trial(t)
+        if accept(t, value) or t <= t_min:
+            return t, value, cuts
+        t *= 0.5
+        cuts += 1
 
 
 class NewtonKSP:

@@ -30,7 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options
-from contact.solvers.newton_ksp import LinearCounts, NewtonKSP
+from contact.solvers.newton_ksp import LinearCounts, NewtonKSP, halving
 from contact.solvers.loop import DIVERGED_MAX_IT, Loop
 
 _EV_ITER = PETSc.Log.Event("SSN iterations")
@@ -342,15 +342,15 @@ class SemismoothNewton(LinearCounts, Loop):
         full = self.dx.norm() <= self.full_step_below * max(x.norm(), 1e-300)
         sub.A.mult(self.dx, self.Adx)
         change = sub.change(x, self.dx, self.Ax, self.Adx)
-        t = 1.0
-        while True:
+
+        def trial(t):
             dtheta = change.value(t)
-            self._scale = change.scale
-            if not self.linesearch or full or self._decrease(t, dtheta, self._scale) \
-                    or t < self.min_step:
-                break
-            t *= 0.5
-            self.line_search_cuts += 1
+            self._scale = change.scale            # (value sets it)
+            return dtheta
+        t, dtheta, cuts = halving(
+            trial, lambda t, d: not self.linesearch or full or self._decrease(t, d, self._scale),
+            self.min_step)
+        self.line_search_cuts += cuts
         self.xt.waxpy(t, self.dx, x)
         sub.A.mult(self.xt, self.Axt)
         return t, dtheta, full
