@@ -124,6 +124,16 @@ def _preallocated(dm, conn, mat_type):
     return A
 
 
+def _element_matrices(conn, coords, lam, mu, element, frame):
+    """(cells, their element matrices) in chunks of cells (element.chunk), in the contact
+    frame's basis when one is given."""
+    step = chunk(conn)
+    for s in range(0, conn.shape[0], step):
+        c = conn[s:s + step]
+        Ke = element_stiffness(coords[c], lam, mu, element)
+        yield c, (Ke if frame is None else frame.element_matrices(Ke, c))
+
+
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
                        lam=None, blocked=False):
     """Global stiffness matrix A (AIJ, or BAIJ when `blocked`; block size 3: create_matrix)
@@ -138,12 +148,7 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     idx_type = PETSc.IntType
     _EV_ASSEMBLE.begin()
-    step = chunk(conn)
-    for s in range(0, conn.shape[0], step):
-        c = conn[s:s + step]
-        Ke = element_stiffness(coords[c], lam, mu, element)
-        if frame is not None:
-            Ke = frame.element_matrices(Ke, c)
+    for c, Ke in _element_matrices(conn, coords, lam, mu, element, frame):
         A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
                                    Ke.reshape(c.shape[0], -1), addv=PETSc.InsertMode.ADD_VALUES)
     A.assemble()
@@ -156,12 +161,7 @@ def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
     (lam, mu), in the contact frame's basis when one is given: the element matrices'
     diagonals summed, no matrix kept."""
     diag = np.zeros((coords.shape[0], 3))
-    step = chunk(conn)
-    for s in range(0, conn.shape[0], step):
-        c = conn[s:s + step]
-        Ke = element_stiffness(coords[c], lam, mu, element)
-        if frame is not None:
-            Ke = frame.element_matrices(Ke, c)
+    for c, Ke in _element_matrices(conn, coords, lam, mu, element, frame):
         np.add.at(diag, c.ravel(), np.diagonal(Ke, axis1=1, axis2=2).reshape(-1, 3))
     return local_to_global(dm, diag.ravel())
 
