@@ -23,12 +23,9 @@ import math
 import os
 import re
 
-import numpy as np
-
-from contact import expression
 from contact import scene as scenes
 from contact.analysis import convergence
-from contact.validation import harness, theory
+from contact.validation import harness, hertz, theory
 
 ROOT = harness.ROOT
 #: the band the issue asks the effectivity to stay in
@@ -143,7 +140,7 @@ def main(argv=None):
 def hertz_lines(args, out_dir, bad):
     """The Hertz section: the estimate of the contact force against a reference by
     convergence (one level finer) and against the closed form."""
-    scene = os.path.join(ROOT, "runs", "scenes", "hertz.yaml")
+    scene = hertz.SCENE
     nd0, k = args.hertz_nd, args.hertz_refine
 
     def run(refine, np_):
@@ -160,9 +157,8 @@ def hertz_lines(args, out_dir, bad):
     sc = scenes.load(scene)                                  # the closed form's data
     E, nu = sc["material"]["young"], sc["material"]["poisson"]
     d, H = -sc["boundary"]["top"]["displacement"][2], sc["mesh"]["parameters"]["H"]
-    R = 1.0 / (2.0 * float(expression.values(sc["contact"]["gap"], np.array([[1.0, 0, 0]]))[0]))
-    wH = 4 * qstar * (1 + nu) * (3 - 2 * nu) / (2 * math.pi * E * H)
-    closed = theory.hertz_force(d + wH, R, E, nu) / 4
+    wH = hertz.approach_correction(4 * qstar, nu, E, H)
+    closed = theory.hertz_force(d + wH, hertz.R_SPHERE, E, nu) / 4
     own = ref["error_estimate"]["normal_force"]
     own = (f"its own estimate (levels {', '.join(own['levels'])}): " +
            (f"{own['error']:.1e}, order {own['order']:.2f}" if own["error"] is not None
@@ -170,7 +166,7 @@ def hertz_lines(args, out_dir, bad):
     out = ["", "## Hertz: the contact force (quarter model)", "",
            f"Scene runs/scenes/hertz.yaml, gmsh nd = {nd0} refined in parallel "
            f"(-mesh_refine K -c2f_levels K: levels Nd = {nd0}, {2 * nd0}, ...). Reference "
-           f"N* = {qstar:.7e} +- {qerr:.1e}: {cont['method']} (contact/validation/"
+           f"N* = {qstar:.7e} +- {qerr:.1e}: {cont['method']} (contact/analysis/"
            f"convergence.py, from the run refined {k + 1} times: "
            + ", ".join(f"N({n}) = {levels[n]:.7e}" for n in nds) + f"; {own}). "
            "Its true error needs a run one level finer still. The closed form, "

@@ -663,7 +663,7 @@ def total_md(tot):
                  + (f"{Lk['order']:.2f}" if Lk["order"] else "–") + " | "
                  + (f"{sec['value']:.7e} (order {sec['order']:.2f})" if sec else "–")
                  + f" | {Lk['method']} |")
-    L += ["", "Each continuum value is extrapolated from the runs below (contact/validation/"
+    L += ["", "Each continuum value is extrapolated from the runs below (contact/analysis/"
           "convergence.py): q = q* + C h^p through the finest triple of meshes that double, "
           "h = 1/Nd; the same from the next-finest doubling triple gives the second estimate, "
           "and their difference is the error estimate. tests/analysis/test_convergence.py checks the "

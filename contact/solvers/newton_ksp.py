@@ -68,17 +68,15 @@ class NewtonKSP:
         """x <- K^-1 b (the operators set on the KSP). reuse: keep the preconditioner of an
         earlier step; if that solve fails, build it afresh and solve again. on_setup():
         before each fresh build. Returns whether the (last) solve converged."""
-        for attempt in range(2):
-            kept = reuse and attempt == 0
-            self.ksp.getPC().setReusePreconditioner(kept)
-            if not kept:
-                self.setups += 1
-                if on_setup is not None:
-                    on_setup()
-            ok = self.solve_again(b, x)
-            if ok or not kept:
-                return ok
-        return ok
+        if reuse:
+            self.ksp.getPC().setReusePreconditioner(True)
+            if self.solve_again(b, x):
+                return True
+        self.ksp.getPC().setReusePreconditioner(False)
+        self.setups += 1
+        if on_setup is not None:
+            on_setup()
+        return self.solve_again(b, x)
 
     def solve_again(self, b, x):
         """x <- K^-1 b with the preconditioner as it is (e.g. to a tighter tolerance)."""

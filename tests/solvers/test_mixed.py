@@ -1,4 +1,4 @@
-"""The mixed u-p split of a nearly incompressible B-bar body's linear solves (contact/
+"""The mixed u-p split of a nearly incompressible B-bar body's linear solves (contact/solvers/
 mixed.py, -newton_pressure_split):
 
 * its algebra: A_g + Gq^T Cq^-1 R Gq, built from the split's own blocks (A_g with
