@@ -3,7 +3,8 @@ parallel.
 
     box    the box at Nd0 = Nd / 2^k cells_per_nd is built on rank 0, distributed (METIS,
            mesh.distribute), then refined k times in parallel (DMPlex regular refinement:
-           each hexahedron into 8, on the rank that owns it); the levels Nd0, 2 Nd0, ...,
+           each hexahedron into 8, on the rank that owns it; on one process refine.py,
+           the same refinement without faces and edges); the levels Nd0, 2 Nd0, ...,
            Nd are the coarse-to-fine start's meshes (none is rebuilt from scratch)
     gmsh   the file as gmsh meshes it (its own Nd), read on rank 0 and distributed: one level,
            or K + 1 with -mesh_refine K (refined K times in parallel: Nd, 2 Nd, ..., the
@@ -34,6 +35,7 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
+from contact.mesh.refine import refine as refine_serial
 
 #: the automatic k keeps at least this many coarse cells per rank
 MIN_CELLS_PER_RANK = 16
@@ -115,6 +117,14 @@ class MeshHierarchy:
         self.levels = []
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
+            return
+        if comm.getSize() == 1:                    # refine.py: no faces or edges built
+            for j in range(k + 1):
+                lv = Level(nd0 << j, self._typed(dm))
+                if self.kind == "box":
+                    _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
+                self.levels.append(lv)
+                dm = refine_serial(lv.dm, lv.conn, lv.coords) if j < k else None
             return
         dm.interpolate()                                  # DMRefine needs faces and edges
         for j in range(k + 1):

@@ -84,29 +84,33 @@ def cross3(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
-def _corner_gradients():
-    """dN_b/dxi_k at the 8 corners a: (a, b, 3)."""
-    f = 1.0 + HEX_REF[None, :, :] * HEX_REF[:, None, :]           # (a, b, 3)
-    G = np.empty((8, 8, 3))
-    for k in range(3):
-        G[:, :, k] = HEX_REF[None, :, k] * np.prod(np.delete(f, k, axis=2), axis=2) / 8.0
-    return G
+def _corner_edges():
+    """For each corner a (cone position) and reference axis k: the corner along the edge
+    from a in direction k, and the sign (+1 when a is at xi_k = -1)."""
+    nb = np.array([[int(np.flatnonzero(np.all(HEX_REF == np.where(np.arange(3) == k,
+                                                                 -HEX_REF[a, k], HEX_REF[a]),
+                                              axis=1))[0]) for k in range(3)]
+                   for a in range(8)], dtype=np.intp)
+    return nb, np.prod(-HEX_REF, axis=1)
 
 
-_G_CORNERS = _corner_gradients()
+#: (8, 3) the corners next to each corner along xi, eta, zeta; (8,) the product of the signs
+_CORNER_NB, _CORNER_SIGN = _corner_edges()
 #: cells checked at a time (check_cells)
 CHECK_CHUNK = 1 << 14
 
 
 def check_cells(comm, conn, coords):
     """MeshError when a cell is inverted or degenerate: det of the Jacobian of the
-    trilinear map <= 0 at one of its 8 corners (vertices out of PETSc's order, too)."""
+    trilinear map <= 0 at one of its 8 corners (vertices out of PETSc's order, too). At a
+    corner the Jacobian's rows are half the 3 edges from it (dx/dxi_k is linear along an
+    edge), so det J = sign / 8 x their triple product."""
     bad = []
     for s in range(0, conn.shape[0], CHECK_CHUNK):
         X = coords[conn[s:s + CHECK_CHUNK]]                       # (c, 8, 3)
-        J = np.matmul(X.transpose(0, 2, 1)[:, None], _G_CORNERS[None])   # (c, a, 3, 3)
-        det = (J[..., 0, :] * cross3(J[..., 1, :], J[..., 2, :])).sum(axis=-1)
-        h3 = np.ptp(X, axis=1).prod(axis=1)
+        e = [X[:, _CORNER_NB[:, k]] - X for k in range(3)]       # (c, 8, 3) each
+        det = _CORNER_SIGN * (e[0] * cross3(e[1], e[2])).sum(axis=-1) / 8.0
+        h3 = (X.max(axis=1) - X.min(axis=1)).prod(axis=1)
         bad.append(s + np.flatnonzero(np.any(det <= 1e-12 * h3[:, None], axis=1)))
     bad = np.concatenate(bad) if bad else np.zeros(0, dtype=int)
     X = coords[conn[bad[:1]]] if bad.size else None
@@ -234,11 +238,12 @@ def boundary_faces(conn, coords, axis, value, tol=1e-9):
     Returns (nf, 4) local vertex indices, cyclic order. On a box, such faces are boundary
     faces; each belongs to one cell and so to one rank.
     """
-    if conn.shape[0] == 0:
+    on = np.abs(coords[:, axis] - value) <= tol             # the vertices on the plane
+    cells = np.flatnonzero(np.count_nonzero(on[conn], axis=1) >= 4)   # (only these can)
+    if cells.size == 0:
         return np.zeros((0, 4), dtype=np.intp)
-    faces = conn[:, HEX_FACES].reshape(-1, 4)
-    on = np.all(np.abs(coords[faces, axis] - value) <= tol, axis=1)
-    return faces[on]
+    faces = conn[cells][:, HEX_FACES].reshape(-1, 4)
+    return faces[np.all(on[faces], axis=1)]
 
 
 def displacement_section(dm):
