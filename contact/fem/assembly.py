@@ -6,6 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options
+from contact.fem import stencil
 from contact.fem.element import (chunk, element_stiffness, element_volume_weights, geometry,
                                   lame, nodal_face_weights, projected_divergence)
 
@@ -33,17 +34,24 @@ def create_matrix(dm, conn, blocked=False):
     type (-dm_mat_type / -mat_type). A Mat type outside the AIJ family asked for (BAIJ,
     SBAIJ, IS, dense) is refused: the Galerkin products (MatPtAP: GAMG, the multigrid of
     q2 and the mixed split) and the SPD flag need an AIJ type in PETSc 3.18."""
+    mat_type = create_matrix_type()
+    _EV_PREALLOC.begin()
+    try:
+        return _preallocated(dm, conn, PETSc.Mat.Type.BAIJ if blocked else mat_type)
+    finally:
+        _EV_PREALLOC.end()
+
+
+def create_matrix_type():
+    """The stiffness's Mat type when it is not BAIJ: -dm_mat_type / -mat_type (refused
+    outside the AIJ family), else AIJ."""
     mat_type = options.requested_type("mat_type")
     if not _aij_family(mat_type):
         raise ValueError(f"-mat_type {mat_type}: the stiffness must be an AIJ type (aij, "
                          f"aijcusparse, aijkokkos, ...) when one is asked for: the Galerkin "
                          f"products (MatPtAP) and the SPD flag need one (without -mat_type "
                          f"the default solver's stiffness is BAIJ where its multigrid allows)")
-    _EV_PREALLOC.begin()
-    try:
-        return _preallocated(dm, conn, PETSc.Mat.Type.BAIJ if blocked else mat_type)
-    finally:
-        _EV_PREALLOC.end()
+    return mat_type or PETSc.Mat.Type.AIJ
 
 
 def _preallocated(dm, conn, mat_type):
@@ -135,25 +143,59 @@ def _element_matrices(conn, coords, lam, mu, element, frame):
 
 
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
-                       lam=None, blocked=False):
+                       lam=None, blocked=False, lattice=None):
     """Global stiffness matrix A (AIJ, or BAIJ when `blocked`; block size 3: create_matrix)
     of `element` (ELEMENTS), unconstrained; in the basis of a contact frame
     (contact/fem/frame.py: T^T A T) when one is given. lam: Lame's lambda instead of that of
-    (young, poisson) (a split of the volumetric stiffness, mixed.py)."""
+    (young, poisson) (a split of the volumetric stiffness, mixed.py). lattice: the cells'
+    mesh.lattice, where they are a box of identical cells on one process: then A is
+    their stencil (fem/stencil.py) instead of their sum, cell by cell."""
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
-    A = create_matrix(dm, conn, blocked)
-    if A.getBlockSize() != 3:
-        A.setBlockSize(3)
+    kind = None if blocked else create_matrix_type()
+    lg = dm.getLGMap()
+    if (lattice is not None and frame is None and conn.shape[1] == 8   # (a frame turns rows)
+            and dm.getComm().getSize() == 1
+            and np.array_equal(lg.getBlockIndices(), np.arange(coords.shape[0]))):
+        _EV_ASSEMBLE.begin()
+        Ke = element_stiffness(coords[conn[:1]], lam, mu, element)[0]
+        A = stencil.assemble(dm.getComm(), Ke, lattice, blocked)
+        A.setLGMap(lg, lg)
+    else:
+        A = create_matrix(dm, conn, blocked=True)   # AIJ types: assembled as BAIJ, converted
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        idx_type = PETSc.IntType
+        _EV_ASSEMBLE.begin()
+        for c, Ke in _element_matrices(conn, coords, lam, mu, element, frame):
+            A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
+                                       Ke.reshape(c.shape[0], -1),
+                                       addv=PETSc.InsertMode.ADD_VALUES)
+        A.assemble()
+        if kind is not None:
+            _to_aij(A)
+    if kind is not None:
+        _to_subtype(A, kind)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-    idx_type = PETSc.IntType
-    _EV_ASSEMBLE.begin()
-    for c, Ke in _element_matrices(conn, coords, lam, mu, element, frame):
-        A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
-                                   Ke.reshape(c.shape[0], -1), addv=PETSc.InsertMode.ADD_VALUES)
-    A.assemble()
     _EV_ASSEMBLE.end()
     return A
+
+
+def _to_aij(A):
+    """A (BAIJ) converted in place to AIJ (PETSc's blocked-to-scalar copy): inserting the
+    element blocks into an AIJ matrix directly searches each scalar entry, 12.4 s against
+    BAIJ's 2.9 s + this conversion at Nd = 80 (runs/results/gpu.md)."""
+    rows, cols = A.getLGMap()
+    A.convert(PETSc.Mat.Type.AIJ, A)
+    A.setLGMap(rows, cols)                               # (MatConvert drops it)
+
+
+def _to_subtype(A, kind):
+    """A (AIJ) in place as the AIJ-family type `kind` (aijcusparse, aijsell, ...)."""
+    sub = kind.lower()
+    if (sub[3:] if sub.startswith(("seq", "mpi")) else sub) != "aij":
+        rows, cols = A.getLGMap()
+        A.convert(kind, A)
+        A.setLGMap(rows, cols)
 
 
 def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):

@@ -103,7 +103,10 @@ class Discretisation:
         self.dm, self.conn, self.coords = dm, conn, coords = lv.dm, lv.conn, lv.coords
         self.partitioner = self.hierarchy.partitioner
         self.physical_names = self.hierarchy.physical_names
-        mesh.check_cells(comm, conn, coords)
+        #: mesh.lattice: the cells a box of identical cells on one process (its stencil)
+        self.lattice = lv.lattice
+        # (on a lattice every cell is the first, translated: its check is theirs)
+        mesh.check_cells(comm, conn[:1] if self.lattice is not None else conn, coords)
         self.element = element_of(sc)
         #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)
@@ -115,6 +118,7 @@ class Discretisation:
                                  "(MeshHierarchy(..., quadratic=True))")
             self.quadratic = self.hierarchy.quadratic_cells(self.level_index)
             self.elements, self.roles = self.quadratic.conn, self.quadratic.roles
+            self.lattice = None
             self.nd = self.quadratic.nd              # the element mesh's
 
         self._parts()
@@ -123,7 +127,8 @@ class Discretisation:
         blocked = self.blocked                  # BAIJ (a rediscretised coarse operator)
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
-                                        element=self.element, blocked=blocked)
+                                        element=self.element, blocked=blocked,
+                                        lattice=self.lattice)
         self._loads()
         self.contact_diagonal = self._contact_diagonal()
         # the rigid-body modes are GAMG's: the multigrid with rediscretised levels (BAIJ)

@@ -63,7 +63,7 @@ def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0):
 class Level:
     """One mesh of the hierarchy: nd, the uninterpolated DMPlex with its displacement
     section, conn (nc, 8) local vertex indices and coords (nv, 3) local coordinates,
-    n_dofs (global)."""
+    n_dofs (global), lattice (mesh.lattice: a box of identical cells, on one process)."""
 
     def __init__(self, nd, dm):
         self.nd, self.dm = nd, dm
@@ -72,6 +72,7 @@ class Level:
         g = dm.getGlobalVec()
         self.n_dofs = g.getSize()
         dm.restoreGlobalVec(g)
+        self.lattice = mesh.lattice(self.conn, self.coords) if dm.getComm().getSize() == 1 else None
 
     def destroy(self):
         self.dm.destroy()
@@ -157,20 +158,18 @@ class MeshHierarchy:
 
     def describe(self):
         """One line: how the mesh was made (for the console and summary.json)."""
-        nd0 = self.levels[0].nd
+        nd0, where = self.levels[0].nd, " in parallel" if self.comm.getSize() > 1 else ""
         if self.kind != "box":
             r = self.refinements - int(self.quadratic)
             return (f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
-                    + (f", refined {r} time{'s' if r > 1 else ''} in parallel (-mesh_refine:"
+                    + (f", refined {r} time{'s' if r > 1 else ''}{where} (-mesh_refine:"
                        f" levels Nd = {', '.join(str(lv.nd) for lv in self.levels)})"
                        if r else "")
-                    + (", refined once more in parallel (q2 nodes)" if self.quadratic
-                       else ""))
+                    + (f", refined once more{where} (q2 nodes)" if self.quadratic else ""))
         if self.refinements == 0:
-            return (f"box built whole on rank 0 at Nd = {nd0}, distributed "
-                    f"({self.partitioner})")
+            return f"box built whole on rank 0 at Nd = {nd0}, distributed ({self.partitioner})"
         return (f"box built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
-                f"refined {self.refinements} times in parallel"
+                f"refined {self.refinements} times{where}"
                 + (f" (q2: elements the cells at Nd = {self.levels[-2].nd}, nodes the "
                    f"vertices at Nd = {self.levels[-1].nd})" if self.quadratic else ""))
 

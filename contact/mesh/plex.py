@@ -123,6 +123,43 @@ def check_cells(comm, conn, coords):
                         f"the first centred at ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})")
 
 
+def lattice(conn, coords, tol=1e-9):
+    """(ijk, n, delta) when the cells conn (nc, 8) of vertices coords fill an axis-aligned
+    box lattice of n = (nx, ny, nz) cells, each vertex used: ijk (nv, 3) each vertex's
+    lattice point, delta (8, 3) the offset of cone position a from its cell's lower corner,
+    the same for every cell; else None. (All its cells are then one cell translated: the
+    stiffness is a stencil, fem/stencil.py, and one cell's check is every cell's.) Local
+    arrays: on several processes a rank's part may be a box of its own, not the mesh."""
+    nc, nv = conn.shape[0], coords.shape[0]
+    if nc == 0 or conn.shape[1] != 8:
+        return None
+    lo = coords.min(axis=0)
+    h = np.ptp(coords[conn[0]], axis=0)
+    if np.any(h <= 0.0):
+        return None
+    n = np.rint((coords.max(axis=0) - lo) / h).astype(np.int64)
+    if int(np.prod(n)) != nc or int(np.prod(n + 1)) != nv:
+        return None
+    ijk = np.rint((coords - lo) / h).astype(np.int64)
+    if np.abs(lo + ijk * h - coords).max() > tol * h.min():
+        return None                                      # off the lattice (graded, turned)
+    delta = ijk[conn[0]] - ijk[conn[0]].min(axis=0)
+    if not np.array_equal(np.sort(delta @ [4, 2, 1]), np.arange(8)):
+        return None
+    for s in range(0, nc, CHECK_CHUNK):                   # every cell: corner + delta
+        c = ijk[conn[s:s + CHECK_CHUNK]]                  # (k, 8, 3)
+        if not np.array_equal(c - c[:, :1] + delta[:1], np.broadcast_to(delta, c.shape)):
+            return None
+    if np.bincount(lattice_index(ijk, n), minlength=nv).max() != 1:
+        return None                                       # (nv points: each once)
+    return ijk, n, delta
+
+
+def lattice_index(ijk, n):
+    """The linear index of lattice points ijk (..., 3) in a box of n cells."""
+    return (ijk[..., 0] * (n[1] + 1) + ijk[..., 1]) * (n[2] + 1) + ijk[..., 2]
+
+
 def _cell_dual_graph(conn):
     """CSR (xadj, adjncy) of cells sharing a face, from the (nc, 8) connectivity."""
     nc = conn.shape[0]

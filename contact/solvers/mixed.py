@@ -110,7 +110,7 @@ class Split:
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
                                     mat["poisson"], frame=disc.frame, element=disc.element,
-                                    lam=lam_g)
+                                    lam=lam_g, lattice=disc.lattice)
         b = Ag.createVecLeft()
         b.set(0.0)
         # A_g's own mean diagonal on the eliminated rows (A's, ~ lambda, would be up to

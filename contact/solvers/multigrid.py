@@ -117,7 +117,8 @@ class Multigrid:
             return
         young, poisson, clamped_xyz = self._rediscretise
         lv = self.hierarchy.levels[self.level - 1]
-        A_c = fem.assemble_stiffness(lv.dm, lv.conn, lv.coords, young, poisson)
+        A_c = fem.assemble_stiffness(lv.dm, lv.conn, lv.coords, young, poisson,
+                                     lattice=lv.lattice)
         P = self.hierarchy.prolongation(self.level)
         m, free_c = P.createVecLeft(), P.createVecRight()
         m.set(0.0)
