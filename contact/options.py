@@ -118,6 +118,12 @@ REGISTRY = [
            "the whole box through rank 0); gmsh and mesh files: refine the file's mesh K "
            "times in parallel (levels Nd, 2 Nd, ..., 2^K Nd: with -c2f_levels K, the error "
            "estimate's; -1 and 0: as read)", "K"),
+    Option("mesh_refine_dmplex", False, bool, "on one process too, refine with DMPlex's "
+           "DMRefine (it builds every face and edge; default there: the same refinement in "
+           "NumPy, contact/mesh/refine.py)", "BOOL"),
+    Option("assembly_stencil", True, bool, "a box of identical cells on one process: the "
+           "stiffness as a stencil of one element matrix (contact/fem/stencil.py; false: "
+           "cell by cell, as on other meshes)", "BOOL"),
     Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
     Option("debug", False, bool, "show the traceback of an error", ""),
     Option("help", None, bool, "this list", ""),

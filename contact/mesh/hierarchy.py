@@ -119,7 +119,7 @@ class MeshHierarchy:
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
             return
-        if comm.getSize() == 1:                    # refine.py: no faces or edges built
+        if comm.getSize() == 1 and not options.get("mesh_refine_dmplex"):   # refine.py
             for j in range(k + 1):
                 lv = Level(nd0 << j, self._typed(dm))
                 if self.kind == "box":
