@@ -29,6 +29,11 @@ Parts (--part, default all):
           element and mode at two sizes on 1 rank (slope: bytes per dof; intercept: the
           floor), and the default on 2 ranks (the parallel growth); recorded in
           runs/results/bench-memory.md.
+  setup   the set-up of the default solver at Nd = 80 (--setup-nd) on one rank: the box
+          refined in NumPy with a stencil stiffness (the default) against DMRefine and the
+          cell-by-cell assembly (-mesh_refine_dmplex 1 -assembly_stencil 0), BAIJ and AIJ
+          (-dm_mat_type aij: the path of GPU types); recorded in
+          runs/results/bench-setup.md.
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
 free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
@@ -349,11 +354,54 @@ def part_memory(args, lines):
               f"{mem(one.summary):.0f} MiB on one rank.", ""]
 
 
+#: part setup: the paths of a box's one-rank set-up (now; the cell-by-cell assembly on
+#: DMRefine's meshes, as before issue 37's set-up work) and the Mat types
+SETUP_PATHS = [("refine.py + stencil (default)", "stencil", []),
+               ("DMRefine + cell by cell", "cells",
+                ["-assembly_stencil", "0", "-mesh_refine_dmplex", "1"])]
+SETUP_TYPES = [("BAIJ (the CPU's)", "baij", []), ("AIJ (a GPU's)", "aij", ["-dm_mat_type", "aij"])]
+
+
+def warm_memory(gb):
+    """Touch `gb` GB once and free them: a virtual machine's hypervisor may back a guest page
+    only at its first touch (this VM: 3 GB first touched in 6.7 s, again in 0.18 s; that
+    stays warm for the next process), which a set-up that allocates gigabytes would pay."""
+    if gb > 0:
+        import numpy as np
+        a = np.ones(int(gb * 1e9) // 8)
+        del a
+
+
+def part_setup(args, lines):
+    nd = args.setup_nd
+    lines += [f"## Set-up at Nd = {nd} on one rank (issue 37, target 3)", "",
+              f"The default solver on the paper's beam, 1 rank; set-up "
+              f"= the Setup stage (mesh levels, discretisation, the multigrid's matrices); "
+              f"{args.setup_warm:g} GB of memory touched before each case (warm_memory). "
+              f"The paths side by side (options), ratio = the other path's / this one's.", "",
+              "| Mat type | path | set-up, s | ratio | whole process, s | Newton / KSP its |",
+              "|---|---|---|---|---|---|"]
+    for tname, ttag, topts in SETUP_TYPES:
+        ref = None
+        for pname, ptag, popts in SETUP_PATHS:
+            case, opts = f"setup-nd{nd}-{ttag}-{ptag}", NEWTON + popts + topts
+            if args.force or harness.cached(os.path.join(args.out_dir, case),
+                                            ["-nd", nd] + opts) is None:
+                warm_memory(args.setup_warm)
+            r = run(args, case, nd, opts)
+            s = r.summary
+            t = s["time_s"]["setup"]
+            ref = ref or t
+            lines.append(f"| {tname} | {pname} | {t:.2f} | {t / ref:.2f} | {r.wall:.1f} | "
+                         f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} |")
+    lines.append("")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
                                                        "ranks", "scaling", "quadratic",
-                                                       "memory"])
+                                                       "memory", "setup"])
     ap.add_argument("--q2-nd", type=int, nargs="+", default=[8, 12],
                     help="sizes (N) of the quadratic part")
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
@@ -364,6 +412,9 @@ def main(argv=None):
     ap.add_argument("--scaling-nd", type=int, default=30)
     ap.add_argument("--scaling-ranks", type=int, nargs="+", default=[1, 2, 4])
     ap.add_argument("--kb-nd", type=int, default=40)
+    ap.add_argument("--setup-nd", type=int, default=80, help="size of the 'setup' part")
+    ap.add_argument("--setup-warm", type=float, default=12.0,
+                    help="GB of memory touched before each case of the 'setup' part")
     ap.add_argument("--force", action="store_true", help="rerun cached cases")
     ap.add_argument("--smoke", action="store_true",
                     help="every part at Nd = 2 (tests); needs --out-dir, records there")
@@ -378,6 +429,7 @@ def main(argv=None):
         args.nd, args.equal_nd, args.ranks_nd = [2], 2, [2]
         args.scaling_nd, args.kb_nd, args.scaling_ranks = 4, 4, [1, 2]
         args.q2_nd = [2]
+        args.setup_nd, args.setup_warm = 4, 0.0
         args.memory_cases = [(el, mode, 1, 2) for el, mode, _, _ in MEMORY_CASES[:2]]
     args.memory_cases = getattr(args, "memory_cases", MEMORY_CASES)
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
@@ -389,7 +441,7 @@ def main(argv=None):
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
              "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic,
-             "memory": part_memory}
+             "memory": part_memory, "setup": part_setup}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)
