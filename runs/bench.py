@@ -363,13 +363,15 @@ SETUP_TYPES = [("BAIJ (the CPU's)", "baij", []), ("AIJ (a GPU's)", "aij", ["-dm_
 
 
 def warm_memory(gb):
-    """Touch `gb` GB once and free them: a virtual machine's hypervisor may back a guest page
-    only at its first touch (this VM: 3 GB first touched in 6.7 s, again in 0.18 s; that
-    stays warm for the next process), which a set-up that allocates gigabytes would pay."""
+    """Touch `gb` GB once, in a process of its own: a virtual machine's hypervisor may back
+    a guest page only at its first touch (this VM: 3 GB first touched in 6.7 s, again in
+    0.18 s; that stays warm for the next process), which a set-up that allocates gigabytes
+    would pay. (Not in this process: a child inherits its parent's peak RSS at fork.)"""
     if gb > 0:
-        import numpy as np
-        a = np.ones(int(gb * 1e9) // 8)
-        del a
+        import subprocess
+        import sys
+        subprocess.run([sys.executable, "-c", f"import numpy; numpy.ones({int(gb * 1e9) // 8})"],
+                       check=True)
 
 
 def part_setup(args, lines):
@@ -379,8 +381,9 @@ def part_setup(args, lines):
               f"= the Setup stage (mesh levels, discretisation, the multigrid's matrices); "
               f"{args.setup_warm:g} GB of memory touched before each case (warm_memory). "
               f"The paths side by side (options), ratio = the other path's / this one's.", "",
-              "| Mat type | path | set-up, s | ratio | whole process, s | Newton / KSP its |",
-              "|---|---|---|---|---|---|"]
+              "| Mat type | path | set-up, s | ratio | whole process, s | Newton / KSP its "
+              "| peak memory, MiB |",
+              "|---|---|---|---|---|---|---|"]
     for tname, ttag, topts in SETUP_TYPES:
         ref = None
         for pname, ptag, popts in SETUP_PATHS:
@@ -393,7 +396,8 @@ def part_setup(args, lines):
             t = s["time_s"]["setup"]
             ref = ref or t
             lines.append(f"| {tname} | {pname} | {t:.2f} | {t / ref:.2f} | {r.wall:.1f} | "
-                         f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} |")
+                         f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} | "
+                         f"{mem(s):.0f} |")
     lines.append("")
 
 

@@ -100,7 +100,7 @@ def test_bench(tmp_path):
     assert 6 <= int(rows["fast"][6]) <= 10                 # fixed-point its (paper: 8)
     for kind in ("BAIJ (the CPU's)", "AIJ (a GPU's)"):      # the set-up's two paths
         paths = table_rows(md, kind)
-        assert len(paths) == 2 and all(len(r) == 6 and float(r[2]) > 0 for r in paths), paths
+        assert len(paths) == 2 and all(len(r) == 7 and float(r[2]) > 0 for r in paths), paths
         assert paths[0][5] == paths[1][5]                   # the same solve either way
     assert int(rows["newton"][6]) == 0 and int(rows["newton"][4]) >= 1   # no loops: Newton
     # the LSE: a linear solve of the same mesh, timed; solve / LSE is their ratio
