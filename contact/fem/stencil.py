@@ -73,7 +73,11 @@ def rows(Ke, lat, blocked=True):
     kind = ((np.minimum(ijk, 1) + (ijk == n)) * [9, 3, 1]).sum(axis=1)
     counts = inside.sum(axis=1)[kind]
     it, big = PETSc.IntType, nv                 # big: past every column
-    Js, Vs = [], []
+    # the arrays made once and filled chunk by chunk (no second copy: at Nd = 80 the AIJ
+    # values alone are 3 GB)
+    I = np.concatenate([[0], np.cumsum(counts if blocked else np.repeat(3 * counts, 3))])
+    J = np.empty(I[-1], dtype=it)
+    V = np.empty(I[-1] * (9 if blocked else 1))
     for s in range(0, nv, CHUNK):
         kd, k = kind[s:s + CHUNK], counts[s:s + CHUNK]
         ins = inside[kd]                                                  # (k, 27)
@@ -83,19 +87,19 @@ def rows(Ke, lat, blocked=True):
         keep = np.arange(27)[None, :] < k[:, None]
         at = kd[:, None] * 27 + order                        # (k, 27): rows of P's (kind, d)
         if blocked:
-            Js.append(cols[keep].astype(it))
-            Vs.append(np.take(P.reshape(-1, 9), at[keep], axis=0).reshape(-1))
+            a, b = I[s], I[s + kd.size]
+            J[a:b] = cols[keep]
+            V[9 * a:9 * b] = np.take(P.reshape(-1, 9), at[keep], axis=0).reshape(-1)
         else:
+            a, b = I[3 * s], I[3 * (s + kd.size)]
             full = np.broadcast_to(keep[:, None, :, None], (kd.size, 3, 27, 3))
-            Js.append(np.broadcast_to((3 * cols[:, None, :, None] + np.arange(3)).astype(it),
-                                      full.shape)[full])
+            J[a:b] = np.broadcast_to(3 * cols[:, None, :, None] + np.arange(3),
+                                     full.shape)[full]
             sel = np.broadcast_to(keep[:, None, :], (kd.size, 3, 27))
-            Vs.append(np.take(P.reshape(-1, 3),
-                              (3 * at[:, None, :] + np.arange(3)[None, :, None])[sel],
-                              axis=0).reshape(-1))
-    per = counts if blocked else np.repeat(3 * counts, 3)
-    I = np.concatenate([[0], np.cumsum(per)]).astype(it)
-    return I, np.concatenate(Js), np.concatenate(Vs)
+            V[a:b] = np.take(P.reshape(-1, 3),
+                             (3 * at[:, None, :] + np.arange(3)[None, :, None])[sel],
+                             axis=0).reshape(-1)
+    return I.astype(it), J, V
 
 
 def assemble(comm, Ke, lat, blocked):
