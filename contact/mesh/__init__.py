@@ -6,10 +6,10 @@ from contact.mesh.plex import (HEX_REF, HEX_FACES, Q2_REF, Q2_ROLE, MeshError,
                                create_box_mesh, read_mesh_file, cross3, CHECK_CHUNK,
                                check_cells, distribute, cell_vertices, boundary_faces,
                                displacement_section, label_parts, labelled_faces,
-                               labelled_cell_faces, rotate_coordinates, lattice,
+                               labelled_cell_faces, rotate_coordinates, turned, lattice,
                                lattice_index)
 
 __all__ = ["HEX_REF", "HEX_FACES", "Q2_REF", "Q2_ROLE", "MeshError", "create_box_mesh",
            "read_mesh_file", "cross3", "CHECK_CHUNK", "check_cells", "distribute", "cell_vertices",
            "boundary_faces", "displacement_section", "label_parts", "labelled_faces",
-           "labelled_cell_faces", "rotate_coordinates", "lattice", "lattice_index"]
+           "labelled_cell_faces", "rotate_coordinates", "turned", "lattice", "lattice_index"]

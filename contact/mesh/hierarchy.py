@@ -169,7 +169,7 @@ class MeshHierarchy:
         if self.refinements == 0:
             return f"box built whole on rank 0 at Nd = {nd0}, distributed ({self.partitioner})"
         return (f"box built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
-                f"refined {self.refinements} times{where}"
+                f"refined {self.refinements} time{'s' if self.refinements > 1 else ''}{where}"
                 + (f" (q2: elements the cells at Nd = {self.levels[-2].nd}, nodes the "
                    f"vertices at Nd = {self.levels[-1].nd})" if self.quadratic else ""))
 

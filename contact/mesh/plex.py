@@ -337,13 +337,18 @@ def labelled_cell_faces(dm, label_name):
     return np.concatenate(out_c), np.concatenate(out_k)
 
 
-def rotate_coordinates(dm, coords, axis, degrees, origin=(0.0, 0.0, 0.0)):
-    """Turn the mesh by `degrees` about the line through `origin` along `axis` (scene
-    mesh.rotate): the DM's coordinates and the local array `coords` (returned anew)."""
+def turned(coords, axis, degrees, origin=(0.0, 0.0, 0.0)):
+    """Points coords (n, 3) turned by `degrees` about the line through `origin` along
+    `axis` (scene mesh.rotate), anew."""
     from contact.geometry import rotation
     R, o = rotation(axis, degrees), np.asarray(origin, dtype=float)
-    g = dm.getCoordinates()
-    a = g.getArray(readonly=True).reshape(-1, 3)
-    g.setArray(((a - o) @ R.T + o).ravel())
-    dm.setCoordinates(g)
     return (coords - o) @ R.T + o
+
+
+def rotate_coordinates(dm, coords, **rotate):
+    """Turn the mesh (scene mesh.rotate: turned's arguments): the DM's coordinates and the
+    local array `coords` (returned anew)."""
+    g = dm.getCoordinates()
+    g.setArray(turned(g.getArray(readonly=True).reshape(-1, 3), **rotate).ravel())
+    dm.setCoordinates(g)
+    return turned(coords, **rotate)

@@ -36,7 +36,7 @@ solve given -<prefix>pc_type gamg: the options database has the last word.
 import numpy as np
 from petsc4py import PETSc
 
-from contact import fem, options, petsc_compat
+from contact import fem, mesh, options, petsc_compat
 
 #: the coarsest level is factored (LU) up to this many dofs, else one GAMG cycle solves it.
 #: Hertz (a gmsh coarse level) with q2, 1 rank: nd = 3 (~10,000 coarse dofs) 25 -> 18 s,
@@ -88,9 +88,9 @@ class Multigrid:
     """The interpolations of PCMG for the problem on level `level` of `hierarchy`:
     frame (contact/fem/frame.py, or None) and clamped (owned rows in the problem's basis) as
     the discretisation's. Mats are built on first use and shared by every solve.
-    rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz) for
-    a first coarse operator assembled on the level below (the module docstring; prepare);
-    clamped_xyz: the clamped rows in x, y, z."""
+    rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz, the
+    scene's mesh.rotate or None) for a first coarse operator assembled on the level below
+    (the module docstring; prepare); clamped_xyz: the clamped rows in x, y, z."""
 
     def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None):
         self.hierarchy, self.level = hierarchy, level
@@ -115,9 +115,12 @@ class Multigrid:
         coarse dofs on the clamped parts (P of the hierarchy, in x, y, z)."""
         if not self.rediscretised or self.coarse is not None:
             return
-        young, poisson, clamped_xyz = self._rediscretise
+        young, poisson, clamped_xyz, rotate = self._rediscretise
         lv = self.hierarchy.levels[self.level - 1]
-        A_c = fem.assemble_stiffness(lv.dm, lv.conn, lv.coords, young, poisson,
+        # the level's coordinates as read; a turned mesh (mesh.rotate) is assembled turned
+        # (it was not: 35 Krylov iterations against 19 on the block_incline scene at Nd 24)
+        coords = lv.coords if rotate is None else mesh.turned(lv.coords, **rotate)
+        A_c = fem.assemble_stiffness(lv.dm, lv.conn, coords, young, poisson,
                                      lattice=lv.lattice)
         P = self.hierarchy.prolongation(self.level)
         m, free_c = P.createVecLeft(), P.createVecRight()
@@ -264,8 +267,8 @@ def for_problem(disc, rediscretise=False):
         return None
     mat = disc.scene["material"]
     return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped,
-                     (mat["young"], mat["poisson"], disc.clamped_xyz) if rediscretise
-                     else None)
+                     (mat["young"], mat["poisson"], disc.clamped_xyz,
+                      disc.scene["mesh"].get("rotate")) if rediscretise else None)
 
 
 def configure(ksp, mg, default="gamg"):
