@@ -45,6 +45,8 @@ CASES = {
     "solver_mode": ("fast", {"uzawa_r": "1e6"}),
     "c2f_levels": ("1", {"nd": "4"}),
     "mesh_refine": ("1", {"nd": "4"}),
+    "mesh_refine_dmplex": ("true", {"nd": "4", "mesh_refine": "1"}),
+    "assembly_stencil": ("false", {"nd": "4"}),
     "gmsh_verbose": ("false", {"scene": HERTZ, "scene_mesh_nd": "1"}),
     "dm_vec_type": ("standard", {}),
     "dm_mat_type": ("aij", {}),

@@ -153,9 +153,9 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
     kind = None if blocked else create_matrix_type()
-    lg = dm.getLGMap()
+    lg, stencil_asked = dm.getLGMap(), options.get("assembly_stencil")
     if (lattice is not None and frame is None and conn.shape[1] == 8   # (a frame turns rows)
-            and dm.getComm().getSize() == 1 and options.get("assembly_stencil")
+            and dm.getComm().getSize() == 1 and stencil_asked
             and np.array_equal(lg.getBlockIndices(), np.arange(coords.shape[0]))):
         _EV_ASSEMBLE.begin()
         Ke = element_stiffness(coords[conn[:1]], lam, mu, element)[0]

@@ -96,7 +96,7 @@ class MeshHierarchy:
         self.quadratic = quadratic
         up = 1 if quadratic else 0
         nd = int(m.get("nd", 1))
-        refine = options.get("mesh_refine")
+        refine, dmplex = options.get("mesh_refine"), options.get("mesh_refine_dmplex")
         if refine < -1:
             raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
         if self.kind == "box":
@@ -119,7 +119,7 @@ class MeshHierarchy:
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
             return
-        if comm.getSize() == 1 and not options.get("mesh_refine_dmplex"):   # refine.py
+        if comm.getSize() == 1 and not dmplex:      # refine.py: no faces or edges built
             for j in range(k + 1):
                 lv = Level(nd0 << j, self._typed(dm))
                 if self.kind == "box":
