@@ -184,18 +184,20 @@ def _to_aij(A):
     """A (BAIJ) converted in place to AIJ (PETSc's blocked-to-scalar copy): inserting the
     element blocks into an AIJ matrix directly searches each scalar entry, 12.4 s against
     BAIJ's 2.9 s + this conversion at Nd = 80 (runs/results/gpu.md)."""
-    rows, cols = A.getLGMap()
-    A.convert(PETSc.Mat.Type.AIJ, A)
-    A.setLGMap(rows, cols)                               # (MatConvert drops it)
+    _convert(A, PETSc.Mat.Type.AIJ)
 
 
 def _to_subtype(A, kind):
     """A (AIJ) in place as the AIJ-family type `kind` (aijcusparse, aijsell, ...)."""
     sub = kind.lower()
     if (sub[3:] if sub.startswith(("seq", "mpi")) else sub) != "aij":
-        rows, cols = A.getLGMap()
-        A.convert(kind, A)
-        A.setLGMap(rows, cols)
+        _convert(A, kind)
+
+
+def _convert(A, kind):
+    rows, cols = A.getLGMap()
+    A.convert(kind, A)
+    A.setLGMap(rows, cols)                               # (MatConvert drops it)
 
 
 def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):

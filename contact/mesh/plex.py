@@ -96,6 +96,9 @@ def _corner_edges():
 
 #: (8, 3) the corners next to each corner along xi, eta, zeta; (8,) the product of the signs
 _CORNER_NB, _CORNER_SIGN = _corner_edges()
+#: the hexahedron's 12 edges as pairs (a, b), a < b, of cone positions (lexicographic)
+HEX_EDGES = np.unique(np.sort(np.stack([np.repeat(np.arange(8), 3), _CORNER_NB.ravel()],
+                                       axis=1), axis=1), axis=0).astype(np.intp)
 #: cells checked at a time (check_cells)
 CHECK_CHUNK = 1 << 14
 

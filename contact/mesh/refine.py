@@ -19,11 +19,7 @@ vertex i of the reference cell lies on that face's plane, and on no other parent
 import numpy as np
 from petsc4py import PETSc
 
-from contact.mesh.plex import HEX_FACES, HEX_REF, Q2_REF, MeshError
-
-#: the hexahedron's 12 edges as pairs of cone positions (one reference coordinate differs)
-HEX_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
-                      if np.count_nonzero(HEX_REF[a] != HEX_REF[b]) == 1], dtype=np.intp)
+from contact.mesh.plex import HEX_EDGES, HEX_FACES, HEX_REF, Q2_REF, MeshError
 #: each face k of HEX_FACES: the reference axis it is normal to and its side (-1 or 1)
 FACE_AXIS = np.array([int(np.flatnonzero(np.ptp(HEX_REF[f], axis=0) == 0)[0])
                       for f in HEX_FACES], dtype=np.intp)
