@@ -10,6 +10,7 @@ import difflib
 import math
 import os
 import re
+import reprlib
 
 import yaml
 from petsc4py import PETSc
@@ -47,28 +48,89 @@ SCHEMA = {
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
+#: what a scene file may hold (README: Errors), checked before any value is built from it:
+#: its bytes; its nodes (scalars, lists, mappings), as written and as if every alias were
+#: a copy of what it names; lists and mappings nested in each other; items in one of them
+MAX_BYTES, MAX_NODES, MAX_DEPTH, MAX_ITEMS = 1 << 18, 20_000, 32, 10_000
+
+
 class SceneError(ValueError):
     """Bad scene file or option value."""
 
 
 class _Loader(yaml.SafeLoader):
-    """YAML 1.1 reads 1e8 or 21.19e4 as strings; read them as floats like YAML 1.2 does."""
+    """YAML 1.1 reads 1e8 or 21.19e4 as strings; read them as floats like YAML 1.2 does.
+    Bounded while composing (PyYAML's composer recurses; ~20 us a node), then as composed,
+    aliases expanded (_bounded), before a value is built."""
+
+    depth = nodes = 0
+
+    def compose_node(self, parent, index):
+        opens = self.check_event(yaml.SequenceStartEvent, yaml.MappingStartEvent)
+        self.depth, self.nodes = self.depth + opens, self.nodes + 1
+        if self.depth > MAX_DEPTH or self.nodes > MAX_NODES:
+            raise SceneError(f"{_DEEP if self.depth > MAX_DEPTH else _MANY} (line "
+                             f"{self.peek_event().start_mark.line + 1})")
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= opens
+
+    def construct_document(self, node):
+        _bounded(node, {})
+        return super().construct_document(node)
 
 
+_DEEP = f"nests lists and mappings more than {MAX_DEPTH} deep"
+_MANY = f"holds more than {MAX_NODES} values, an alias counted as a copy of what it names"
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"""^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?(?:[eE][-+]?[0-9]+)$""", re.X),
     list("-+0123456789"))
 
 
+def _bounded(node, done, inside=frozenset(), depth=1):
+    """(nodes, depth) of a composed node expanded, each node walked once (`done`), so nine
+    lines of aliases that expand to 10^9 nodes cost nine lines. Refuses a node inside
+    itself (`inside`: the ones above it) and the limits MAX_*."""
+    if isinstance(node, yaml.ScalarNode):
+        return 1, 0
+    where = f" (line {node.start_mark.line + 1})"
+    if id(node) in inside:
+        raise SceneError(f"holds an alias inside the list or mapping it names{where}")
+    if depth > MAX_DEPTH or id(node) in done and depth + done[id(node)][1] - 1 > MAX_DEPTH:
+        raise SceneError(_DEEP + where)
+    if len(node.value) > MAX_ITEMS:
+        raise SceneError(f"has a list or mapping of more than {MAX_ITEMS} items{where}")
+    if id(node) not in done:
+        kids = node.value if isinstance(node, yaml.SequenceNode) else \
+            [k for pair in node.value for k in pair]
+        inner = inside | {id(node)}
+        sub = [_bounded(k, done, inner, depth + 1) for k in kids]
+        done[id(node)] = (1 + sum(n for n, _ in sub), 1 + max((d for _, d in sub), default=0))
+    if done[id(node)][0] > MAX_NODES:
+        raise SceneError(_MANY + where)
+    return done[id(node)]
+
+
 def load(path):
+    """The scene file at `path` as a dict, its limits (MAX_*) checked before any value is
+    built from it; a relative mesh.file is taken relative to the scene file."""
     try:
-        with open(path) as f:
-            data = yaml.load(f, Loader=_Loader)
+        with open(path, "rb") as f:
+            text = f.read(MAX_BYTES + 1)
+        if len(text) > MAX_BYTES:
+            raise SceneError(f"is larger than {MAX_BYTES} bytes")
+        data = yaml.load(text, Loader=_Loader)
     except OSError as e:
         raise SceneError(f"cannot read scene file {path}: {e.strerror}") from None
+    except SceneError as e:
+        raise SceneError(f"scene file {path} {e}") from None
     except yaml.YAMLError as e:
-        raise SceneError(f"scene file {path} is not valid YAML: {e}") from None
+        mark = getattr(e, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        what = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise SceneError(f"scene file {path} is not valid YAML: {what}{where}") from None
     if not isinstance(data, dict):
         raise SceneError(f"scene file {path} must hold a mapping")
     data.setdefault("name", os.path.splitext(os.path.basename(path))[0])
@@ -141,30 +203,73 @@ def from_options(opts=None):
     return scene
 
 
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 40
+
+
+def _shown(value):
+    """`value` for a message, in a few words however large it is (never walked whole)."""
+    if isinstance(value, (list, dict)):
+        kind = "list" if isinstance(value, list) else "mapping"
+        items = value.values() if isinstance(value, dict) else value
+        if len(value) > 6 or any(isinstance(c, (list, dict)) for c in items):
+            return f"a {kind} of {len(value)} items"
+        return f"a {kind} {_REPR.repr(value)}"
+    return _REPR.repr(value)
+
+
+def _number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and \
+        math.isfinite(value)
+
+
+#: the kinds of the scene values an option may also give (options.py: REGISTRY)
+KINDS = {int: ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
+         float: ("a finite number", _number), str: ("a string", lambda v: isinstance(v, str)),
+         bool: ("true or false", lambda v: isinstance(v, bool))}
+#: names of scene values in messages, where the path alone says little
+LABELS = {("material", "young"): "Young's modulus (material.young)",
+          ("material", "poisson"): "Poisson ratio (material.poisson)"}
+
+
+def _kinds(scene):
+    """Each value at an option's scene path is of the option's kind (friction and gap,
+    numbers or expressions: _rest and _foundation), before anything reads it."""
+    for o in options.REGISTRY:
+        if not o.scene or tuple(o.scene) in EXPRESSIONS:
+            continue
+        try:
+            value = _get(scene, o.scene)
+        except (KeyError, IndexError, TypeError, ValueError):     # not there: a default
+            continue
+        words, ok = KINDS[o.kind]
+        if value is not None and not ok(value):
+            what = LABELS.get(tuple(o.scene), ".".join(o.scene))
+            raise SceneError(f"{what} must be {words}, got {_shown(value)}")
+
+
 def _positive(value, what):
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or \
-            not math.isfinite(value) or value <= 0:
-        raise SceneError(f"{what} must be a positive finite number, got {value!r}")
+    if not _number(value) or value <= 0:
+        raise SceneError(f"{what} must be a positive finite number, got {_shown(value)}")
 
 
 def _check_keys(d, section, where):
     allowed = SCHEMA[section]
     if not isinstance(d, dict):
-        raise SceneError(f"{where} must be a mapping, got {d!r}")
+        raise SceneError(f"{where} must be a mapping, got {_shown(d)}")
     for key in d:
         if key not in allowed:
             close = difflib.get_close_matches(str(key), allowed, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else \
                 f" (allowed: {', '.join(allowed)})"
-            raise SceneError(f"unknown key '{key}' in {where}{hint}")
+            raise SceneError(f"unknown key {_REPR.repr(key)} in {where}{hint}")
 
 
 def _numbers(value, n, what):
     """A list of n finite numbers (not bool)."""
     if not (isinstance(value, list) and len(value) == n and
-            all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-                for c in value)):
-        raise SceneError(f"{what} must be a list of {n} finite numbers, got {value!r}")
+            all(_number(c) for c in value)):
+        raise SceneError(f"{what} must be a list of {n} finite numbers, got {_shown(value)}")
     return value
 
 
@@ -178,30 +283,35 @@ def validate(scene, sources=None):
     for key in ("mesh", "material", "boundary"):
         if key not in scene:
             raise SceneError(f"scene has no '{key}' section")
+    for key in ("name", "description"):
+        if not isinstance(scene.get(key, ""), str):
+            raise SceneError(f"{key} must be a string, got {_shown(scene[key])}")
+    _kinds(scene)
     mesh = scene["mesh"]
     kind = mesh.setdefault("type", "box")
     if kind not in MESH_TYPES:
-        raise SceneError(f"mesh type {kind!r} is not supported ({', '.join(MESH_TYPES)})")
+        raise SceneError(f"mesh.type must be one of {', '.join(MESH_TYPES)}, got "
+                         f"{_shown(kind)}")
     nd = mesh.get("nd", 1)
     if not isinstance(nd, int) or isinstance(nd, bool) or nd < 1:
-        raise SceneError(f"nd must be an integer >= 1, got {nd!r}")
+        raise SceneError(f"nd must be an integer >= 1 (mesh.nd), got {_shown(nd)}")
     if kind in ("file", "gmsh"):
         if not isinstance(mesh.get("file"), str):
             raise SceneError(f"mesh.file must name a mesh file ({'.geo or .msh' if kind == 'gmsh' else 'gmsh .msh, ExodusII, ...'})")
         mesh.setdefault("nd", 1)
         params = mesh.setdefault("parameters", {})
         if not isinstance(params, dict) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                for v in params.values()):
-            raise SceneError(f"mesh.parameters must map names to finite numbers, got {params!r}")
+                isinstance(k, str) and _number(v) for k, v in params.items()):
+            raise SceneError(f"mesh.parameters must map names to finite numbers, got "
+                             f"{_shown(params)}")
     else:
         _box(mesh)
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
     el = mesh.get("element", "auto")
     if el != "auto" and el not in options.ELEMENT_NAMES:
-        raise SceneError(f"element must be auto, {', '.join(options.ELEMENT_NAMES)}, got "
-                         f"{el!r}")
+        raise SceneError(f"mesh.element must be auto, {', '.join(options.ELEMENT_NAMES)}, "
+                         f"got {_shown(el)}")
     _material(scene["material"])
     _rest(scene)
     for path in EXPRESSIONS:
@@ -234,7 +344,7 @@ def _box(mesh):
     cpn = mesh.setdefault("cells_per_nd", [1, 1, 1])
     if not (isinstance(cpn, list) and len(cpn) == 3 and
             all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cpn)):
-        raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {cpn!r}")
+        raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {_shown(cpn)}")
 
 
 def _rotate(rot):
@@ -247,8 +357,8 @@ def _rotate(rot):
     if not any(ax):
         raise SceneError("mesh.rotate.axis must not be zero")
     deg = rot.get("degrees")
-    if not isinstance(deg, (int, float)) or isinstance(deg, bool) or not math.isfinite(deg):
-        raise SceneError(f"mesh.rotate.degrees must be a finite number, got {deg!r}")
+    if not _number(deg):
+        raise SceneError(f"mesh.rotate.degrees must be a finite number, got {_shown(deg)}")
     _numbers(rot.setdefault("origin", [0.0, 0.0, 0.0]), 3, "mesh.rotate.origin")
 
 
@@ -256,32 +366,37 @@ def _material(mat):
     _positive(mat.get("young"), "Young's modulus (material.young)")
     nu = mat.get("poisson")
     if not isinstance(nu, (int, float)) or isinstance(nu, bool) or not (-1.0 < nu < 0.5):
-        raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got {nu!r}")
+        raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got "
+                         f"{_shown(nu)}")
 
 
 def _rest(scene):
     """Solver values, body force, friction and the boundary parts."""
     sol = scene.setdefault("solver", {})
     for k in ("uzawa_r", "apg_rtol", "uzawa_rtol", "fp_rtol"):
-        _positive(sol.setdefault(k, options.SCENE_SOLVER_DEFAULTS[k]), k)
+        _positive(sol.setdefault(k, options.SCENE_SOLVER_DEFAULTS[k]), f"solver.{k}")
     _numbers(scene.setdefault("body_force", [0.0, 0.0, 0.0]), 3, "body_force")
     steps = scene.setdefault("loading", {}).setdefault("steps", 1)
     if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-        raise SceneError(f"loading.steps must be an integer >= 1, got {steps!r}")
+        raise SceneError(f"loading.steps must be an integer >= 1, got {_shown(steps)}")
     _foundation(scene["contact"] if isinstance(scene.get("contact"), dict) else {})
     fr = scene.setdefault("contact", {}).setdefault("friction", 0.0)
     if isinstance(fr, bool) or not isinstance(fr, (int, float, str)):
-        raise SceneError(f"friction must be a number or an expression in x, y, z, got {fr!r}")
+        raise SceneError(f"contact.friction must be a number or an expression in x, y, z, "
+                         f"got {_shown(fr)}")
     if isinstance(fr, (int, float)) and (not math.isfinite(fr) or fr < 0):
-        raise SceneError(f"friction must be a finite number >= 0, got {fr!r}")
+        raise SceneError(f"contact.friction must be a finite number >= 0, got {fr!r}")
     parts = scene["boundary"]
     if not isinstance(parts, dict) or not parts:
-        raise SceneError("scene has no boundary parts")
+        raise SceneError(f"scene has no boundary parts (boundary: {_shown(parts)})")
     for name, part in parts.items():
+        if not isinstance(name, str):
+            raise SceneError(f"boundary part names must be strings, got {_shown(name)}")
         _check_keys(part, "part", f"boundary part '{name}'")
         t = part.get("type")
         if t not in PART_TYPES:
-            raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got {t!r}")
+            raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got "
+                             f"{_shown(t)}")
         if ("plane" in part) == ("physical" in part):
             raise SceneError(f"boundary part {name!r}: give either plane: [x|y|z, value] or "
                              f"physical: <gmsh physical group name>")
@@ -294,16 +409,16 @@ def _rest(scene):
             part["physical"] = str(part["physical"])
         else:
             plane = part.get("plane")
-            if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in AXES and
-                    isinstance(plane[1], (int, float)) and not isinstance(plane[1], bool) and
-                    math.isfinite(plane[1])):
+            if not (isinstance(plane, list) and len(plane) == 2 and
+                    isinstance(plane[0], str) and plane[0] in AXES and _number(plane[1])):
                 raise SceneError(f"boundary part {name!r}: plane must be [x|y|z, finite "
-                                 f"value], got {plane!r}")
+                                 f"value], got {_shown(plane)}")
         if t == "traction":
             _numbers(part.get("traction"), 3, f"boundary part {name!r}: traction")
         if t == "dirichlet":
             comps = part.setdefault("components", ["x", "y", "z"])
-            if not (isinstance(comps, list) and comps and all(c in AXES for c in comps)):
+            if not (isinstance(comps, list) and comps and
+                    all(isinstance(c, str) and c in AXES for c in comps)):
                 raise SceneError(f"boundary part {name!r}: components must be among x, y, z")
             _numbers(part.setdefault("displacement", [0.0, 0.0, 0.0]), 3,
                      f"boundary part {name!r}: displacement")
@@ -350,7 +465,7 @@ def _foundation(contact):
     if gap is not None and (isinstance(gap, bool) or not isinstance(gap, (int, float, str))
                             or (isinstance(gap, float) and not math.isfinite(gap))):
         raise SceneError(f"contact.gap must be a number or an expression in x, y, z, "
-                         f"got {gap!r}")
+                         f"got {_shown(gap)}")
 
 
 def foundation_normal(scene):

@@ -10,6 +10,9 @@ import numpy as np
 import pytest
 import yaml
 from conftest import CLI_ENV, PAPER, ROOT, cli, skip_in_parallel
+from test_scene_limits import LIMITS, laughs
+
+from contact import scene as scenes
 
 
 
@@ -163,7 +166,24 @@ CASES = [
      "cannot write to output directory"),
     ("solution-check", lambda t: ["-solver_mode", "faithful", "-uzawa_r", "1e300"],
      "solution check failed"),
+    ("list-for-a-number", lambda t: ["-scene", scene_file(t, _set([0.3, 0.3], "material",
+                                                                   "poisson"))],
+     "Poisson ratio (material.poisson) must be a finite number, got a list [0.3, 0.3]"),
+    ("mapping-for-a-string", lambda t: ["-scene", scene_file(t, _set({"a": 1}, "solver",
+                                                                      "mode"))],
+     "solver.mode must be a string, got a mapping {'a': 1}"),
 ]
+
+
+def _text(tmp_path, text):
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+#: the scene files over the limits (scene.MAX_*): billion laughs, deep, long, large, ...
+CASES += [("scene-" + case, lambda t, text=text: ["-scene", _text(t, text)], msg)
+          for case, text, msg in LIMITS]
 
 
 def _check(p, msg, outdir):
@@ -187,7 +207,7 @@ def test_bad_input_one_line(tmp_path, case, args, msg):
 TWO_RANKS = ("unknown-option", "young-negative", "friction-expression-inf", "rigid-motion-free",
              "tips-over",
              "missing-part", "mesh-inverted", "mesh-not-a-mesh", "output-unwritable",
-             "solution-check", "mat-type-baij")
+             "solution-check", "mat-type-baij", "scene-billion-laughs")
 
 
 @pytest.mark.slow
@@ -201,6 +221,44 @@ def test_bad_input_two_ranks_one_line_no_hang(tmp_path, case):
     if "-output_dir" not in argv:
         argv += ["-output_dir", out]
     _check(_cli(["-nd", "2"] + argv, ranks=2), msg, out)
+
+
+def _run_measured(args, tmp_path, timeout=60.0):
+    """`python -m contact args`: (wall s, peak RSS in MB, exit status, stderr); killed
+    after `timeout` s (os.wait4: this child's own rusage, not the test process's)."""
+    with open(tmp_path / "stderr", "w+") as err:
+        t = time.perf_counter()
+        p = subprocess.Popen([sys.executable, "-m", "contact"] + args, cwd=ROOT, env=CLI_ENV,
+                             stdout=subprocess.DEVNULL, stderr=err)
+        while not (w := os.wait4(p.pid, os.WNOHANG))[0]:
+            if time.perf_counter() - t > timeout:
+                p.kill()
+                p.wait()
+                pytest.fail(f"{args}: no answer in {timeout} s")
+            time.sleep(0.005)
+        wall = time.perf_counter() - t
+        p.returncode = os.waitstatus_to_exitcode(w[1])
+        err.seek(0)
+        return wall, w[2].ru_maxrss / 1024, p.returncode, err.read()
+
+
+@skip_in_parallel
+def test_billion_laughs_refused_within_a_second_in_little_memory(tmp_path):
+    """Nine lines of anchors (10^9 values expanded) as mesh.nd: refused in one line less
+    than 1 s after the start-up of a run refused at once (-young -5, same machine, same
+    moment), in the memory of that run (before: 2.4 GB after 20 s, growing;
+    runs/results/scene-limits.md)."""
+    out = str(tmp_path / "out")
+    base = _run_measured(["-young", "-5", "-output_dir", out], tmp_path)
+    wall, rss, rc, err = _run_measured(["-scene", _text(tmp_path, laughs()), "-output_dir",
+                                        out], tmp_path)
+    assert base[2] == 1 and rc == 1, (base, err)
+    assert err.strip().splitlines() == [f"contact: error: scene file {tmp_path}/scene.yaml "
+                                        f"holds more than {scenes.MAX_NODES} values, an alias "
+                                        f"counted as a copy of what it names (line 5)"], err
+    assert wall < base[0] + 1.0, (wall, base[0])
+    assert rss < 500 and rss < base[1] + 50, (rss, base[1])
+    assert not os.path.isdir(out) or not os.listdir(out)
 
 
 @skip_in_parallel
