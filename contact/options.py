@@ -203,6 +203,11 @@ REGISTRY = [
            "rises, up to N in a row; then back to the last point of decrease and a "
            "backtracking line search from there (0: a monotone line search every step)",
            "N"),
+    Option("newton_hold_reversals", True, bool, "a slip node whose slip direction "
+           "reversed since the last Newton step is held (stick) in the next step's "
+           "Jacobian: the iteration otherwise cycles between opposite slip directions "
+           "where the answer sticks at the friction limit (thin plates); false: every "
+           "step the residual's own sets", "BOOL"),
     Option("newton_stall_its", 8, int, "N steps that do not halve the lowest residual "
            "stop the iteration as stalled (then friction continuation, then load "
            "continuation)", "N"),

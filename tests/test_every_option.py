@@ -73,6 +73,7 @@ CASES = {
     "ssn_pc_reuse": ("false", FAST),
     "ssn_pc_lag": ("2", FAST),
     "newton_ew": ("false", {}),
+    "newton_hold_reversals": ("false", {}),
     "newton_ew_max": ("0.05", {}),
     "newton_pc_reuse": ("false", {}),
     "newton_pc_rebuild_its": ("5", {}),

@@ -96,6 +96,8 @@ class CoulombNewton(LinearCounts, Loop):
         self._rebuild = False
         self.line_search_cuts = 0
         self.continuations = 0           # stalled stages started again with less friction
+        self.reversals_held = 0          # slip nodes held after a reversal (held_reversals)
+        self._slip_prev = None           # the last Jacobian's slip set and directions
         self.frictions = []              # the friction factor of each stage, in order
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
@@ -205,6 +207,30 @@ class CoulombNewton(LinearCounts, Loop):
                   r1=r1, r2=r2)
         _EV_RES.end()
         return r.norm(), st
+
+    def held_reversals(self, st):
+        """The sets of the next Newton step's Jacobian: st's own, except that a slip node
+        whose slip direction z/|z| turned by more than 90 degrees since the last step's
+        Jacobian is held (stick) in this one (-newton_hold_reversals). Near a solution
+        that sticks at nodes where |z| is close to F a_n (a thin plate: the stability rows
+        newton-thin-plate-nd1/2) the slip piece's Newton step overshoots x_t through 0
+        and the next step's slip direction is the opposite one: the iteration cycles
+        between the two with the same sets (also with exact linear solves). A reversal
+        passes through stick; its step is then the stick piece's (a Newton-like step,
+        not the generalized Jacobian's), which the residual's own sets and the watchdog
+        then accept or undo. The memory is cleared at each stage's start (`forget_slip`)."""
+        prev, self._slip_prev = self._slip_prev, (st["slip"], st["n1"], st["n2"])
+        if not self.hold_reversals or prev is None:
+            return st
+        rev = st["slip"] & prev[0] & (st["n1"] * prev[1] + st["n2"] * prev[2] < 0.0)
+        self.reversals_held += int(rev.sum())
+        if not rev.any():
+            return st
+        return dict(st, stick=st["stick"] | rev, slip=st["slip"] & ~rev)
+
+    def forget_slip(self):
+        """A stage starts: no slip direction to compare with (held_reversals)."""
+        self._slip_prev = None
 
     def _system(self, st, glued=False):
         """K and the right-hand side of the Newton step at the residual's state st (into

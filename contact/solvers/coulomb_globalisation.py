@@ -188,6 +188,7 @@ def stage(nt, x, scale, it):
     lowest residual."""
     glued = x.norm() == 0.0
     first = it + 1
+    nt.forget_slip()
     nr, st = nt._state(x, nt.r)
     reason, eta, nr_old, bests = None, nt.ew_max, None, [nr]   # lowest ||r|| so far
     xw, dxw = nt.xw, nt.dxw
@@ -216,7 +217,7 @@ def stage(nt, x, scale, it):
                 eta = nt.ksp_rtol
             if nt.ew:                 # no need to solve below the final tolerance
                 eta = min(max(eta, 0.5 * nt._rtol * scale / nr), nt.ew_max)
-            K, rhs = nt._system(st, glued and it == first)
+            K, rhs = nt._system(nt.held_reversals(st), glued and it == first)
             if not nt._linear_solve(K, rhs, eta):
                 if kw > 0:
                     # a full step without decrease led where the Jacobian cannot be
