@@ -22,6 +22,9 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   held      friction-held blocks: Nd 2-32 x 1-16 increments x shear 50-95 % of F p, a block
             on a gap, a tall block near and past its tipping limit
   rubber    nu from 0.49 to 0.4999999, q2p1 and bbar, the beam and Hertz
+  fbig      F from 0.3 to 1e6: the beam at Nd 4-32, the friction-held block, Hertz
+  plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2
+  scenefiles  malformed scene files (billion laughs, deep nesting, ...): refused in one line
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
 stdout.txt, stderr.txt and run.json (options, outcome, error, wall time); a row whose
 run.json records the same options is reused, failed or not (--force reruns). Rows that
@@ -321,6 +324,87 @@ def cases_rubber():
     return out
 
 
+#: issue 45's friction range: the beam at Nd 4-32, the friction-held block, Hertz
+F_BIG = ("0.3", "10", "100", "1000", "1e4", "1e6")
+
+
+def cases_fbig():
+    """The default solver from F = 0.3 to 1e6 (target: converged, Newton steps at most twice
+    F = 0.3's on the same mesh): the paper's beam at Nd = 4, 8, 12, 16 (and 32 at F = 0.3
+    and 1000), the friction-held block (block_shear.yaml, Nd = 8) and Hertz with friction
+    (hertz.yaml, its own mesh)."""
+    blk, hz = (["-scene", os.path.join(SCENES, f)] for f in ("block_shear.yaml",
+                                                             "hertz.yaml"))
+    out = [Case(f"fbig-beam-nd{n}-F{f}", f"beam, F = {f}, Nd = {n}",
+                nd(n) + ["-friction", f] + NEWTON)
+           for n in (4, 8, 12, 16) for f in F_BIG]
+    out += [Case(f"fbig-beam-nd32-F{f}", f"beam, F = {f}, Nd = 32",
+                 nd(32) + ["-friction", f] + NEWTON) for f in ("0.3", "1000")]
+    out += [Case(f"fbig-block-F{f}", f"friction-held block, F = {f}, Nd = 8",
+                 blk + nd(8) + ["-friction", f] + NEWTON)
+            for f in ("0.5",) + F_BIG[1:]]               # (at F < 0.4 the block slides)
+    out += [Case(f"fbig-hertz-F{f}", f"Hertz with friction F = {f}",
+                 hz + ["-friction", f] + NEWTON) for f in F_BIG]
+    return out
+
+
+#: plates 3 x 1 x T: (T, cells_per_nd along x): cells of aspect (3 / a) / T
+PLATES = ((0.03, 5), (0.03, 10), (0.03, 20), (0.1, 10))
+
+
+def cases_plates():
+    """The default solver on plates 3 x 1 x T pressed on their face (T / length 1/100 and
+    1/30), cells of aspect 5 to 20, one to three cells through the thickness, q1 and q2."""
+    out = []
+    for t, a in PLATES:
+        c = (a, max(1, round(a / 3)), 1)
+        on = ["-scene_mesh_upper_2", num(t), "-scene_boundary_top_plane_1", num(t)]
+        for el in ("q1", "q2"):
+            for n in (1, 2, 3):
+                out.append(Case(f"plate-T{num(t)}-a{a}-{el}-nd{n}",
+                                f"plate 3 x 1 x {num(t)}, {el}, {mesh((3, 1, t), c, n)}",
+                                nd(n) + on + cells(c) + ["-element", el] + NEWTON))
+    return out
+
+
+#: malformed scene files (issue 45, target 4): name -> (text, what it is)
+SCENE_FILES = {
+    "billion-laughs": ("a: &a [1,1,1,1,1,1,1,1,1,1]\n" + "".join(
+        f"{k}: &{k} [{', '.join(['*' + p] * 10)}]\n"
+        for p, k in zip("abcdefgh", "bcdefghi")) + "mesh: {type: box, nd: *i}\n",
+        "nine lines of anchors, each ten aliases of the one before"),
+    "deep": ("mesh: " + "[" * 200 + "]" * 200 + "\n", "lists nested 200 deep"),
+    "long-list": ("extra: [" + ", ".join(["0"] * 12000) + "]\n", "a list of 12000 items"),
+    "self-alias": ("a: &a [*a]\n", "an alias inside what it names"),
+    "list-for-number": (None, "the paper's beam with nd: [1, 2], a list where a number "
+                        "belongs"),
+    "big-file": ("# " + "x" * 400000 + "\n", "a file of 400 kB"),
+}
+
+
+#: where cases_scenefiles writes its files: the run's out folder (main sets it)
+SCENE_FILES_DIR = [OUT]
+
+
+def cases_scenefiles():
+    """Malformed scene files: each must be refused in one line, at once, memory untouched
+    (the rows' wall time shows it). The files are written into the suite's out folder."""
+    d = os.path.join(SCENE_FILES_DIR[0], "scene-files")
+    os.makedirs(d, exist_ok=True)
+    out = []
+    for name, (text, desc) in SCENE_FILES.items():
+        path = os.path.join(d, name + ".yaml")
+        if text is None:                                    # the paper's beam, nd a list
+            with open(os.path.join(ROOT, "contact", "data", "paper_beam.yaml")) as f:
+                text = re.sub(r"(?m)^(\s*)nd:.*$", r"\1nd: [1, 2]", f.read())
+        if not os.path.exists(path) or open(path).read() != text:
+            with open(path, "w") as f:
+                f.write(text)
+        out.append(Case(f"scenefile-{name}", f"{desc}: must fail in one line",
+                        ["-scene", path] + NEWTON))
+    return out
+
+
 # -- running -------------------------------------------------------------------------------
 #: options of the loops only: dropped (with their values) when a row becomes a newton row
 LOOP_ONLY = {"-uzawa_r", "-solver_mode", "-fp_warm_start", "-ssn_ksp_type", "-ssn_pc_type",
@@ -598,6 +682,18 @@ GROUPS = {
                "The paper's beam (q2p1, N = 4; bbar, Nd = 8) and Hertz (q2p1, nd = 2; bbar, "
                "nd = 3) in the default mode, nu = 0.49 to 0.4999999.",
                cases_rubber),
+    "fbig": ("Friction up to 1e6 (issue 45, target 1)",
+             "The default solver from F = 0.3 to 1e6: the paper's beam at Nd = 4-16 (32 at F "
+             "= 0.3 and 1000), the friction-held block at Nd = 8, Hertz with friction.",
+             cases_fbig),
+    "plates": ("Thin plates (issue 45, target 2)",
+               "Plates 3 x 1 x T (T = 0.03 and 0.1) pressed on their face, cells of aspect 5 "
+               "to 20, 1-3 cells through the thickness, q1 and q2, default solver.",
+               cases_plates),
+    "scenefiles": ("Malformed scene files (issue 45, target 4)",
+                   "Scene files that must be refused in one line, at once: billion laughs, "
+                   "deep nesting, a long list, a self-referencing alias, a list for a "
+                   "number, a file too large.", cases_scenefiles),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),
@@ -608,7 +704,8 @@ SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "load-press-300", "thin-plate-nd1", "elem-1x3x3-nd2", "fvar-half", "fvar-negative",
          "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
          "fgrid-nd3-F10", "gap-varying-xy-nd2-F10", "held-nd8-s2-q0.8", "held-tall-nd4-tips",
-         "rubber-beam-bbar-0.4999999")
+         "rubber-beam-bbar-0.4999999", "fbig-beam-nd4-F1e6", "plate-T0.03-a10-q1-nd1",
+         "scenefile-billion-laughs")
 
 
 def main(argv=None):
@@ -633,6 +730,7 @@ def main(argv=None):
         ap.error("--smoke needs --out-dir (it must not write into runs/)")
     out = args.out_dir or (OUT if args.ranks == 1 else f"{OUT}-np{args.ranks}")
     record = args.record or (os.path.join(out, "stability.md") if args.smoke else RECORD)
+    SCENE_FILES_DIR[0] = out
     keep = (lambda c: c.id in SMOKE) if args.smoke else (lambda c: True)
     groups = {name: (title, intro, [c for c in make() if keep(c)])
               for name, (title, intro, make) in GROUPS.items()

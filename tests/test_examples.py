@@ -203,7 +203,7 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Summary.**") == 13                     # every group's summary renders
+    assert md.count("**Summary.**") == 16                     # every group's summary renders
     assert "**Findings.**" not in md                          # no prose from the script
     for section in md.split("\n## ")[1:]:                    # each summary is its rows' count
         verdicts = [line.strip("|").split("|")[4].strip() for line in section.splitlines()
@@ -222,8 +222,12 @@ def test_stability(tmp_path):
         assert row[bad][4].startswith("failed: `contact: error: ") and "friction" in row[bad][4]
         assert "traceback" not in row[bad][11].lower()
     assert row["F-fast-relax-0.6"][4] != "not run (no cached result)"
-    for ok in ("fgrid-nd3-F10", "gap-varying-xy-nd2-F10"):    # the default solver's groups
+    for ok in ("fgrid-nd3-F10", "gap-varying-xy-nd2-F10",    # the default solver's groups
+               "fbig-beam-nd4-F1e6", "plate-T0.03-a10-q1-nd1"):
         assert table_rows(md, ok)[0][4] == "converged"
+    bad = table_rows(md, "scenefile-billion-laughs")[0]     # refused in one line, at once
+    assert bad[4].startswith("failed: `contact: error: scene file ") and \
+        "alias counted as a copy" in bad[4] and float(bad[7]) < 10
 
 
 @pytest.mark.slow
