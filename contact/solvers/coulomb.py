@@ -56,6 +56,11 @@ _EV_KSP = PETSc.Log.Event("Newton linear solve")
 _EV_RES = PETSc.Log.Event("Newton residual")
 
 EPS = float(np.finfo(PETSc.RealType).eps)
+#: how often a stage holds one node after a reversal (held_reversals). Measured (1 rank,
+#: 2026-11-27): at every reversal the locked q1 beam at nu = 0.4999, Nd 4 (LU) ends in
+#: DIVERGED_STAGNATION; once, the plate 3 x 1 x 0.03 of aspect-20 q1 cells at nd 1 and 2
+#: in DIVERGED_MAX_IT; twice, both converge (22; 11 and 11 steps)
+HOLD_LIMIT = 2
 
 
 class CoulombNewton(LinearCounts, Loop):
@@ -98,6 +103,7 @@ class CoulombNewton(LinearCounts, Loop):
         self.continuations = 0           # stalled stages started again with less friction
         self.reversals_held = 0          # slip nodes held after a reversal (held_reversals)
         self._slip_prev = None           # the last Jacobian's slip set and directions
+        self._held = None                # the nodes held so far this stage
         self.frictions = []              # the friction factor of each stage, in order
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
@@ -218,11 +224,16 @@ class CoulombNewton(LinearCounts, Loop):
         between the two with the same sets (also with exact linear solves). A reversal
         passes through stick; its step is then the stick piece's (a Newton-like step,
         not the generalized Jacobian's), which the residual's own sets and the watchdog
-        then accept or undo. The memory is cleared at each stage's start (`forget_slip`)."""
+        then accept or undo. A node is held at most HOLD_LIMIT times a stage; the
+        memory is cleared at each stage's start (`forget_slip`)."""
         prev, self._slip_prev = self._slip_prev, (st["slip"], st["n1"], st["n2"])
         if not self.hold_reversals or prev is None:
             return st
         rev = st["slip"] & prev[0] & (st["n1"] * prev[1] + st["n2"] * prev[2] < 0.0)
+        if self._held is None:
+            self._held = np.zeros(rev.shape, dtype=int)
+        rev &= self._held < HOLD_LIMIT               # each node at most twice a stage
+        self._held = self._held + rev
         self.reversals_held += int(rev.sum())
         if not rev.any():
             return st
@@ -231,6 +242,7 @@ class CoulombNewton(LinearCounts, Loop):
     def forget_slip(self):
         """A stage starts: no slip direction to compare with (held_reversals)."""
         self._slip_prev = None
+        self._held = None
 
     def _system(self, st, glued=False):
         """K and the right-hand side of the Newton step at the residual's state st (into

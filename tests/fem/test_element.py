@@ -145,7 +145,9 @@ def test_block_bbar_varying_friction_against_reference(solves):
 def test_newton_steps_do_not_grow_with_nu(friction, monkeypatch):
     """Exact Newton steps on the pressed, sheared block: as many at nu = 0.4999 as at 0.3
     (measured 7, 7, 7 and 6, 6, 6); with rho from A's own diagonal (~ lambda: the cap
-    off) nu = 0.4999 ends in DIVERGED_MAX_IT."""
+    off) nu = 0.4999 ends in DIVERGED_MAX_IT, cycling between opposite slip directions:
+    the slip-reversal hold (-newton_hold_reversals, default) gets it through in 11 and 8
+    steps (measured), the cap alone in 7 and 6."""
     from contact.fem import discretisation
     from contact.solvers.loop import ConvergenceError
     steps = {}
@@ -156,8 +158,11 @@ def test_newton_steps_do_not_grow_with_nu(friction, monkeypatch):
             steps[nu] = pr.inner.iterations
         assert max(steps.values()) <= 9 and steps[0.4999] <= steps[0.3] + 1, steps
         monkeypatch.setattr(discretisation, "RHO_LAMBDA_CAP", 1e12)
-        with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
-            solve(_bbar_block(friction, 0.4999))
+        held = solve(_bbar_block(friction, 0.4999))
+        assert held.converged and held.inner.iterations <= 15
+        with options.inserted({"newton_hold_reversals": "false"}):
+            with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
+                solve(_bbar_block(friction, 0.4999))
 
 
 @pytest.mark.parametrize("element", ["q1", "bbar"])
