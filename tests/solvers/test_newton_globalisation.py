@@ -308,7 +308,7 @@ def test_thin_plate_slip_reversal_is_held(nd):
     reversed (-newton_hold_reversals, default) converges in 6 (nd 1) and 9 (nd 2) steps on
     1 rank (11 and 78 on 2),
     to the answer of the paper's loops (fast mode, tight tolerances: another algorithm).
-    Without the hold it still fails on 1 rank (checked there)."""
+    Without the hold it still fails on 1 rank with PETSc 3.18 (checked there)."""
     pr = solve(_thin_plate(nd))
     # measured 6 and 9 steps on 1 rank; 11 and 78 on 2 (partitioned smoothers; nd 2
     # without the hold: DIVERGED_MAX_IT at 100 there too)
@@ -323,7 +323,9 @@ def test_thin_plate_slip_reversal_is_held(nd):
         ref = solve(scenes.validate(sc))
     (u, p), (ur, pref) = fields(pr), fields(ref)
     assert rel_err(u, ur) < 1e-6 and np.abs(p - pref).max() < 1e-6 * np.abs(pref).max()
-    if pr.comm.getSize() == 1:        # (partitioned, the iteration takes another path)
+    if pr.comm.getSize() == 1 and PETSc.Sys.getVersion()[:2] == (3, 18):
+        # (partitioned, or with PETSc 3.26's solvers, the iteration takes another path:
+        # there nd 1 converges without the hold)
         with options.inserted({"newton_hold_reversals": "false"}):
             with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
                 solve(_thin_plate(nd))
