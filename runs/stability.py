@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from contact.scene import DEFAULT_SCENE
 from contact.validation import harness
 
 ROOT = harness.ROOT
@@ -395,7 +396,7 @@ def cases_scenefiles():
     for name, (text, desc) in SCENE_FILES.items():
         path = os.path.join(d, name + ".yaml")
         if text is None:                                    # the paper's beam, nd a list
-            with open(os.path.join(ROOT, "contact", "data", "paper_beam.yaml")) as f:
+            with open(DEFAULT_SCENE) as f:
                 text = re.sub(r"(?m)^(\s*)nd:.*$", r"\1nd: [1, 2]", f.read())
         if not os.path.exists(path) or open(path).read() != text:
             with open(path, "w") as f:

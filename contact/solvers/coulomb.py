@@ -103,7 +103,7 @@ class CoulombNewton(LinearCounts, Loop):
         self.continuations = 0           # stalled stages started again with less friction
         self.reversals_held = 0          # slip nodes held after a reversal (held_reversals)
         self._slip_prev = None           # the last Jacobian's slip set and directions
-        self._held = None                # the nodes held so far this stage
+        self._held = 0                   # how often each node was held this stage
         self.frictions = []              # the friction factor of each stage, in order
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
@@ -230,9 +230,7 @@ class CoulombNewton(LinearCounts, Loop):
         if not self.hold_reversals or prev is None:
             return st
         rev = st["slip"] & prev[0] & (st["n1"] * prev[1] + st["n2"] * prev[2] < 0.0)
-        if self._held is None:
-            self._held = np.zeros(rev.shape, dtype=int)
-        rev &= self._held < HOLD_LIMIT               # each node at most twice a stage
+        rev &= self._held < HOLD_LIMIT               # each node at most HOLD_LIMIT times
         self._held = self._held + rev
         self.reversals_held += int(rev.sum())
         if not rev.any():
@@ -242,7 +240,7 @@ class CoulombNewton(LinearCounts, Loop):
     def forget_slip(self):
         """A stage starts: no slip direction to compare with (held_reversals)."""
         self._slip_prev = None
-        self._held = None
+        self._held = 0
 
     def _system(self, st, glued=False):
         """K and the right-hand side of the Newton step at the residual's state st (into
