@@ -177,7 +177,8 @@ REGISTRY = [
            "N"),
     Option("newton_ew", True, bool, "Eisenstat-Walker forcing terms for the Newton steps' "
            "linear solves (false: each to -newton_ksp_rtol)", "BOOL"),
-    Option("newton_ew_max", 0.1, float, "largest forcing term (the loosest linear solve)",
+    Option("newton_ew_max", 0.1, float, "largest forcing term (the loosest linear "
+           "solve); divided by the largest friction coefficient where that exceeds 1",
            "ETA"),
     Option("newton_pc_reuse", True, bool, "keep the preconditioner from step to step "
            "(the Jacobian changes only in its contact rows)", "BOOL"),
@@ -208,6 +209,17 @@ REGISTRY = [
            "Jacobian: the iteration otherwise cycles between opposite slip directions "
            "where the answer sticks at the friction limit (thin plates); false: every "
            "step the residual's own sets", "BOOL"),
+    Option("newton_friction_start", 3.0, float, "friction coefficients above F1: the "
+           "iteration first solves with the friction scaled to F1 at its largest, then at "
+           "the full friction from there (friction continuation in one jump; not from a "
+           "coarser mesh's answer, nor with -newton_continuation_factor 0)", "F1"),
+    Option("newton_tension_slip", 1.0, float, "while climbing to a larger friction (or "
+           "from a coarser mesh's answer), a contact node with friction above F0 that was "
+           "in contact at the last Newton step and is now open in a tension small against "
+           "its tangential traction (-a_n < F |z|) gets the slip piece's rows in the next "
+           "step (large F: the answer has nodes that slip at a pressure near 0, between "
+           "the held and the open states the iteration otherwise cycles between; inf: "
+           "never)", "F0"),
     Option("newton_stall_its", 8, int, "N steps that do not halve the lowest residual "
            "stop the iteration as stalled (then friction continuation, then load "
            "continuation)", "N"),

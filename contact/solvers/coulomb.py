@@ -61,6 +61,10 @@ EPS = float(np.finfo(PETSc.RealType).eps)
 #: DIVERGED_STAGNATION; once, the plate 3 x 1 x 0.03 of aspect-20 q1 cells at nd 1 and 2
 #: in DIVERGED_MAX_IT; twice, both converge (22; 11 and 11 steps)
 HOLD_LIMIT = 2
+#: how often a stage gives one node the slip piece after it opened (pulled_to_slip).
+#: Measured (1 rank, 2026-11-27, the beam at Nd 12): once, F = 1e6 took 11 + 24 Newton
+#: steps (Nd 6 + Nd 12); twice, 11 + 11 (F = 1000: 11 + 10 either way)
+PULL_LIMIT = 2
 
 
 class CoulombNewton(LinearCounts, Loop):
@@ -103,7 +107,14 @@ class CoulombNewton(LinearCounts, Loop):
         self.continuations = 0           # stalled stages started again with less friction
         self.reversals_held = 0          # slip nodes held after a reversal (held_reversals)
         self._slip_prev = None           # the last Jacobian's slip set and directions
+        self._stick_prev = None          # the last Jacobian's stick and slip sets
+        self.climbing = False            # a stage from a solution at less friction
+        #: the start is a coarser mesh's answer at the same friction (coarse-to-fine):
+        #: no first stage at -newton_friction_start, and the first stage climbs
+        self.from_coarse = False
+        self.pulled = 0                  # open nodes given the slip piece (pulled_to_slip)
         self._held = 0                   # how often each node was held this stage
+        self._pulls = 0                  # how often each node was pulled this stage
         self.frictions = []              # the friction factor of each stage, in order
         self._stall_hint = None
         self.n_active = self.n_stick = self.n_slip = 0
@@ -133,6 +144,10 @@ class CoulombNewton(LinearCounts, Loop):
         if not 0.0 <= self.continuation_factor < 1.0:
             raise ValueError(f"-newton_continuation_factor must be in [0, 1), got "
                              f"{self.continuation_factor}")
+        if not self.friction_start > 0.0:
+            raise ValueError(f"-newton_friction_start must be > 0, got {self.friction_start}")
+        if not self.tension_slip >= 0.0:
+            raise ValueError(f"-newton_tension_slip must be >= 0, got {self.tension_slip}")
         if self.watchdog < 0:
             raise ValueError(f"-newton_watchdog must be >= 0, got {self.watchdog}")
         if self.stall_its < 1:
@@ -210,9 +225,50 @@ class CoulombNewton(LinearCounts, Loop):
             c[k].setArray(v)
             cs.scatter(c[k], r, k)
         st = dict(active=active, stick=stick, slip=slip, n1=n1, n2=n2, c=cc, h=h, X=X,
-                  r1=r1, r2=r2)
+                  r1=r1, r2=r2, an=an, z1=z1, z2=z2, nz=nz)
         _EV_RES.end()
         return r.norm(), st
+
+    def step_sets(self, st):
+        """The sets of the next Newton step's Jacobian: st's own, with the nodes
+        `pulled_to_slip` and those `held_reversals` changed."""
+        st = self.pulled_to_slip(st)
+        self._stick_prev = st["stick"] | st["slip"]
+        return self.held_reversals(st)
+
+    def pulled_to_slip(self, st):
+        """st with the nodes that were in contact (stick or slip) at the last step's
+        Jacobian and are now open, in a tension small against their tangential traction
+        (-a_n < F |z|), given the slip piece's rows (c = 0, n = z/|z|, its residual
+        R_t - w F a_n n in the right-hand side), where F > -newton_tension_slip, in a
+        stage that climbs to a larger friction from the solution at a smaller one
+        (friction_stages) or starts from a coarser mesh's answer, at most PULL_LIMIT
+        times a node and stage. At a large F the answer's contact front has
+        nodes that slip with a pressure near 0 and a tangential traction F times it (the
+        beam's corners at F = 1000: p = 0.083, |l_t| = 83): held, they pull (tension);
+        open, the next step presses them in and holds them; the slip window
+        0 <= a_n < |z| / F between is never met and the iteration cycles. The slip
+        piece's step goes to its edge, a_n = n.l_t / F. The residual keeps its own sets
+        (only the step changes), so the watchdog judges the step on the true residual.
+        Not in other stages: where the iteration starts from x = 0 or a coarser mesh's
+        answer, nodes that open for good (the sheared block's trailing edge) would be
+        pulled back (block_shear.yaml at F = 100: 82 Newton steps instead of 4)."""
+        if self._stick_prev is None or not self.climbing:
+            return st
+        F = self.F
+        pull = self._stick_prev & ~st["active"] & (F > self.tension_slip) & \
+            (F * st["nz"] > -st["an"]) & (self._pulls < PULL_LIMIT)
+        self._pulls = self._pulls + pull
+        n = self.comm.tompi4py().allreduce(int(pull.sum()))
+        if not n:
+            return st
+        ns = np.where(st["nz"] > 0.0, st["nz"], 1.0)
+        n1 = np.where(pull, st["z1"] / ns, st["n1"])
+        n2 = np.where(pull, st["z2"] / ns, st["n2"])
+        d = np.where(pull, -self.w * F * st["an"], 0.0)     # r_t: the slip piece's - R_t
+        self.pulled += n                  # (over all ranks)
+        return dict(st, active=st["active"] | pull, slip=st["slip"] | pull, n1=n1, n2=n2,
+                    c=np.where(pull, 0.0, st["c"]), dr=(d * n1, d * n2))
 
     def held_reversals(self, st):
         """The sets of the next Newton step's Jacobian: st's own, except that a slip node
@@ -239,8 +295,8 @@ class CoulombNewton(LinearCounts, Loop):
 
     def forget_slip(self):
         """A stage starts: no slip direction to compare with (held_reversals)."""
-        self._slip_prev = None
-        self._held = 0
+        self._slip_prev = self._stick_prev = None
+        self._held = self._pulls = 0
 
     def _system(self, st, glued=False):
         """K and the right-hand side of the Newton step at the residual's state st (into

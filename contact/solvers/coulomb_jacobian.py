@@ -258,6 +258,9 @@ class CoulombJacobian:
             pr = n[0] * r1 + n[1] * r2
             for k, rk in enumerate((r1, r2)):
                 t[k][q] = -gam * (rk - n[k] * pr)
+        if "dr" in st:                  # nodes given another piece's rows (pulled_to_slip)
+            t[0] -= st["dr"][0]
+            t[1] -= st["dr"][1]
         for k in range(2):              # collective: every rank, with or without slip nodes
             c[k].setArray(t[k])
             cs.scatter(c[k], rhs, k, mode=PETSc.InsertMode.ADD_VALUES)

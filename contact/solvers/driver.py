@@ -189,6 +189,8 @@ def solve_contact(pr, sol, b, gap, start=None, g0=None, path=None):
         if start is not None:
             start[0].copy(sol.l)
             g0 = start[1]
+        if newton:       # the coarser mesh's answer at the same friction: no climb to it
+            loops.inner.from_coarse = start is not None
         if cs.has_friction and g0 is None and pr.friction_held is not None and not newton:
             g0 = normal_pressure(pr, loops, b, gap)
         if newton:

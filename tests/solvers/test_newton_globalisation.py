@@ -63,8 +63,15 @@ def _beam(nd=3, friction=10.0):
     return scenes.validate(sc)
 
 
+#: the stalls below are those of the iteration at large F without its two aids: the first
+#: stage at -newton_friction_start (F = 10 at Nd 3 converges from F = 3 without a stall)
+#: and the slip piece for nodes pulled open (-newton_tension_slip)
+FULL_F = {"newton_friction_start": "inf", "newton_tension_slip": "inf"}
+
+
 def test_stalled_iteration_continues_in_friction():
-    pr = solve(_beam())
+    with options.inserted(FULL_F):
+        pr = solve(_beam())
     assert pr.converged and pr.inner.continuations >= 1
     assert max(pr.residuals.values()) < 1e-9
     sc = _beam()
@@ -94,14 +101,14 @@ def test_failed_load_continuation_is_named():
 
 
 def test_a_stalled_climb_goes_halfway():
-    with options.inserted({"newton_stall_its": "4"}):
+    with options.inserted(dict(FULL_F, newton_stall_its="4")):
         pr = solve(_beam(6, 100.0))
     path = pr.inner.frictions
     assert pr.converged and max(pr.residuals.values()) < 1e-9
     i = next(k for k in range(2, len(path)) if path[k] == 1.0)   # the first climb back to F
     assert path[i - 1] == pytest.approx(0.3) and path[i + 1] == pytest.approx(0.3 ** 0.5)
     assert path[-1] == 1.0
-    with options.inserted({"newton_watchdog": "2"}):          # another path
+    with options.inserted(dict(FULL_F, newton_watchdog="2")):          # another path
         ref = solve(_beam(6, 100.0))
     assert ref.inner.frictions != path
     (u, p), (ur, pref) = fields(pr), fields(ref)
@@ -329,3 +336,44 @@ def test_thin_plate_slip_reversal_is_held(nd):
         with options.inserted({"newton_hold_reversals": "false"}):
             with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
                 solve(_thin_plate(nd))
+
+
+def _steps(pr):
+    """Newton steps over all levels of the coarse-to-fine start (coarse_runs' counts)."""
+    return pr.inner.iterations + sum(r["iterations"]["inner_total"] for r in pr.coarse_runs)
+
+
+def test_large_friction_climbs_from_a_smaller_one():
+    """Issue 45, target 1: the beam at F = 1000 (Nd 6, one level). The default goes
+    first to F = 3 (-newton_friction_start) and climbs from there, pulling the corner
+    nodes that open in a small tension to their slip piece (-newton_tension_slip); it
+    reaches the answer of the plain iteration with exact solves (LU, without the two
+    aids: 34 steps, another path to the same discrete problem; the paper's loops
+    oscillate at this F) and the run's own checks of the Coulomb conditions."""
+    pr = solve(_beam(6, 1000.0))
+    assert pr.converged and max(pr.residuals.values()) < 1e-9, pr.residuals
+    assert pr.inner.frictions[:2] == [pytest.approx(3.0 / 1000.0), 1.0]
+    assert pr.inner.pulled >= 1 and pr.inner.iterations <= 16, pr.inner.iterations
+    with options.inserted(dict(FULL_F, newton_ksp_type="preonly", newton_pc_type="lu")):
+        ref = solve(_beam(6, 1000.0))
+    assert ref.converged and ref.inner.iterations > 2 * pr.inner.iterations
+    (u, p), (ur, pref) = fields(pr), fields(ref)
+    assert rel_err(u, ur) < 1e-8 and np.abs(p - pref).max() < 1e-8 * np.abs(pref).max()
+
+
+@skip_in_parallel
+def test_large_friction_steps_at_most_twice_small_friction():
+    """The beam at Nd 12 (levels Nd 6, 12): F = 1000 in at most twice the Newton steps of
+    F = 0.3 (measured 11 + 6 against 8 + 4); without the climb's aids the default iteration ends
+    in DIVERGED_MAX_IT (measured: the issue's report, friction-large.md)."""
+    def beam(friction):
+        sc = paper_scene(nd=12, mode="newton")
+        sc["contact"]["friction"] = friction
+        return scenes.validate(sc)
+    small, big = solve(beam(0.3)), solve(beam(1000.0))
+    # (the Coulomb condition's residual carries F times the pressure's: 2.3e-9 measured)
+    assert big.converged and max(big.residuals.values()) < 1e-8, big.residuals
+    assert _steps(big) <= 2 * _steps(small), (_steps(big), _steps(small))
+    with options.inserted(FULL_F):
+        with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
+            solve(beam(1000.0))
