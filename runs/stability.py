@@ -23,6 +23,7 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
             on a gap, a tall block near and past its tipping limit
   rubber    nu from 0.49 to 0.4999999, q2p1 and bbar, the beam and Hertz
   fbig      F from 0.3 to 1e6: the beam at Nd 4-32, the friction-held block, Hertz
+  hertznu   Hertz, nu from 0.3 to 0.4999999 x q1, q2, q2p1, bbar at nd 2 and 3
   plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2
   scenefiles  malformed scene files (billion laughs, deep nesting, ...): refused in one line
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
@@ -323,6 +324,21 @@ def cases_rubber():
                     Case(f"rubber-hertz-{el}-{nu}", f"Hertz, {el}, nu = {nu}",
                          hz + nd(n_hertz) + e + NEWTON)]
     return out
+
+
+#: issue 45's Hertz family: nu x element at nd 2 and 3 (hertz.yaml's mesh, refined)
+NU_HERTZ = ("0.3", "0.49", "0.4999", "0.4999999")
+
+
+def cases_hertznu():
+    """Hertz (hertz.yaml) in the default mode for nu = 0.3 to 0.4999999 with each element,
+    q1, q2, q2p1 and bbar, at nd = 2 and 3: converged, or refused up front with the
+    element that works (q1 and q2 lock as nu -> 0.5: converged, but to a locked answer;
+    the check's residuals do not see locking: the force column does)."""
+    hz = ["-scene", os.path.join(SCENES, "hertz.yaml")]
+    return [Case(f"hertznu-{el}-nd{n}-{nu}", f"Hertz, {el}, nu = {nu}, nd = {n}",
+                 hz + nd(n) + ["-element", el, "-poisson", nu] + NEWTON)
+            for el in ("q1", "q2", "q2p1", "bbar") for n in (2, 3) for nu in NU_HERTZ]
 
 
 #: issue 45's friction range: the beam at Nd 4-32, the friction-held block, Hertz
@@ -687,6 +703,9 @@ GROUPS = {
              "The default solver from F = 0.3 to 1e6: the paper's beam at Nd = 4-16 (32 at F "
              "= 0.3 and 1000), the friction-held block at Nd = 8, Hertz with friction.",
              cases_fbig),
+    "hertznu": ("Hertz: nu x element (issue 45, targets 3 and 5)",
+                "Hertz (hertz.yaml) at nd = 2 and 3, nu = 0.3, 0.49, 0.4999, 0.4999999, "
+                "with q1, q2, q2p1 and bbar, default solver.", cases_hertznu),
     "plates": ("Thin plates (issue 45, target 2)",
                "Plates 3 x 1 x T (T = 0.03 and 0.1) pressed on their face, cells of aspect 5 "
                "to 20, 1-3 cells through the thickness, q1 and q2, default solver.",
@@ -706,7 +725,7 @@ SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
          "fgrid-nd3-F10", "gap-varying-xy-nd2-F10", "held-nd8-s2-q0.8", "held-tall-nd4-tips",
          "rubber-beam-bbar-0.4999999", "fbig-beam-nd4-F1e6", "plate-T0.03-a10-q1-nd1",
-         "scenefile-billion-laughs")
+         "hertznu-q1-nd2-0.3", "scenefile-billion-laughs")
 
 
 def main(argv=None):
