@@ -107,7 +107,7 @@ class CoulombNewton(LinearCounts, Loop):
         self.continuations = 0           # stalled stages started again with less friction
         self.reversals_held = 0          # slip nodes held after a reversal (held_reversals)
         self._slip_prev = None           # the last Jacobian's slip set and directions
-        self._stick_prev = None          # the last Jacobian's stick and slip sets
+        self._contact_prev = None        # the last Jacobian's stick and slip sets
         self.climbing = False            # a stage from a solution at less friction
         #: the start is a coarser mesh's answer at the same friction (coarse-to-fine):
         #: no first stage at -newton_friction_start, and the first stage climbs
@@ -233,7 +233,7 @@ class CoulombNewton(LinearCounts, Loop):
         """The sets of the next Newton step's Jacobian: st's own, with the nodes
         `pulled_to_slip` and those `held_reversals` changed."""
         st = self.pulled_to_slip(st)
-        self._stick_prev = st["stick"] | st["slip"]
+        self._contact_prev = st["stick"] | st["slip"]
         return self.held_reversals(st)
 
     def pulled_to_slip(self, st):
@@ -250,13 +250,14 @@ class CoulombNewton(LinearCounts, Loop):
         0 <= a_n < |z| / F between is never met and the iteration cycles. The slip
         piece's step goes to its edge, a_n = n.l_t / F. The residual keeps its own sets
         (only the step changes), so the watchdog judges the step on the true residual.
-        Not in other stages: where the iteration starts from x = 0 or a coarser mesh's
-        answer, nodes that open for good (the sheared block's trailing edge) would be
-        pulled back (block_shear.yaml at F = 100: 82 Newton steps instead of 4)."""
-        if self._stick_prev is None or not self.climbing:
+        Not in other stages: where the iteration starts from x = 0 or from the previous
+        load increment's answer, nodes that open for good (the sheared block's trailing
+        edge) would be pulled back (block_shear.yaml at F = 100: 82 Newton steps instead
+        of 4 in its last increment)."""
+        if self._contact_prev is None or not self.climbing:
             return st
         F = self.F
-        pull = self._stick_prev & ~st["active"] & (F > self.tension_slip) & \
+        pull = self._contact_prev & ~st["active"] & (F > self.tension_slip) & \
             (F * st["nz"] > -st["an"]) & (self._pulls < PULL_LIMIT)
         self._pulls = self._pulls + pull
         n = self.comm.tompi4py().allreduce(int(pull.sum()))
@@ -295,7 +296,7 @@ class CoulombNewton(LinearCounts, Loop):
 
     def forget_slip(self):
         """A stage starts: no slip direction to compare with (held_reversals)."""
-        self._slip_prev = self._stick_prev = None
+        self._slip_prev = self._contact_prev = None
         self._held = self._pulls = 0
 
     def _system(self, st, glued=False):
