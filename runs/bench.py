@@ -29,6 +29,12 @@ Parts (--part, default all):
           element and mode at two sizes on 1 rank (slope: bytes per dof; intercept: the
           floor), and the default on 2 ranks (the parallel growth); recorded in
           runs/results/bench-memory.md.
+  thin    plates 3 x 1 x 0.03 pressed on their face (cells of aspect 5, 11 and 20; q1 at
+          Nd = 8 and 16, q2 at 4 and 8: --thin-nd, --thin-q2-nd), 1 rank: the multigrid's
+          point-block Jacobi smoothing (-multigrid_line_ratio 0) against line smoothing
+          (ratio 4: the lines across the thickness, contact/solvers/line_smoother.py):
+          Newton steps, Krylov iterations in all and the longest solve of the finest
+          level, time; recorded in runs/results/bench-thin.md.
   setup   the set-up of the default solver at Nd = 80 (--setup-nd) on one rank: the box
           refined in NumPy with a stencil stiffness (the default) against DMRefine and the
           cell-by-cell assembly (-mesh_refine_dmplex 1 -assembly_stencil 0), BAIJ and AIJ
@@ -317,6 +323,48 @@ def part_quadratic(args, lines):
     lines.append("")
 
 
+#: part thin: the plates' cells per Nd (x, y, z) and their aspect (longest / thinnest edge)
+THIN_CELLS = {5: ((20, 7, 1), 5), 11: ((10, 3, 1), 11), 20: ((5, 2, 1), 20)}
+PLATE = ["-scene_mesh_upper_2", "0.03", "-scene_boundary_top_plane_1", "0.03"]
+
+
+def _finest_solves(out):
+    """Krylov iterations of the finest level's linear solves (after the last c2f line)."""
+    out = out.split("c2f: started")[-1]
+    return [int(k) for k in re.findall(r"solve converged due to \w+ iterations (\d+)", out)]
+
+
+def part_thin(args, lines):
+    """Line smoothing on thin plates (the module docstring)."""
+    lines += ["## Thin plates: point-block Jacobi against line smoothing in the multigrid, "
+              "1 rank", "",
+              "Plates 3 x 1 x 0.03 on the foundation (the beam's loads, the top traction on "
+              "z = 0.03); ratio 0: point-block Jacobi (the smoothing before line smoothing); "
+              "ratio 4: lines of the nodes across the thickness (and with them Newton "
+              "forcing terms at most 0.1 / aspect, line_smoother.EW_ASPECT). The default "
+              "(-multigrid_line_ratio 6) smooths lines where cells have an aspect above 6: "
+              "the ratio-4 rows at aspects 11 and 20, the ratio-0 rows at 5.", "",
+              "| element | aspect | Nd | dofs | ratio | Newton steps | Krylov its | longest "
+              "finest solve | time, s |", "|---|---|---|---|---|---|---|---|---|"]
+    for el, nds in (("q1", args.thin_nd), ("q2", args.thin_q2_nd)):
+        for aspect, (cells, _) in THIN_CELLS.items():
+            for nd in nds:
+                if aspect == 5 and nd > min(nds):
+                    continue                 # (the larger: 2M dofs)
+                for ratio in ("0", "4"):
+                    opts = PLATE + ["-element", el, "-newton_ksp_converged_reason",
+                                    "-multigrid_line_ratio", ratio]
+                    for k, c in enumerate(cells):
+                        opts += [f"-scene_mesh_cells_per_nd_{k}", str(c)]
+                    r = run(args, f"thin-{el}-a{aspect}-nd{nd}-r{ratio}", nd, opts)
+                    s, its = r.summary, r.summary["iterations"]
+                    fine = _finest_solves(r.stdout)
+                    lines.append(f"| {el} | {aspect} | {nd} | {s['dofs']} | {ratio} | "
+                                 f"{its['inner_total']} | {its['ksp_total']} | "
+                                 f"{max(fine, default=0)} | {s['time_s']['total']:.2f} |")
+    lines.append("")
+
+
 #: part memory: (element, mode, Nd small, Nd large), the paper's beam; q2 at half the Nd has
 #: the same nodes
 MEMORY_CASES = [("q1", "newton", 20, 40), ("bbar", "newton", 20, 40), ("q2", "newton", 10, 20),
@@ -405,7 +453,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
                                                        "ranks", "scaling", "quadratic",
-                                                       "memory", "setup"])
+                                                       "memory", "setup", "thin"])
     ap.add_argument("--q2-nd", type=int, nargs="+", default=[8, 12],
                     help="sizes (N) of the quadratic part")
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
@@ -419,6 +467,10 @@ def main(argv=None):
     ap.add_argument("--setup-nd", type=int, default=80, help="size of the 'setup' part")
     ap.add_argument("--setup-warm", type=float, default=12.0,
                     help="GB of memory touched before each case of the 'setup' part")
+    ap.add_argument("--thin-nd", type=int, nargs="+", default=[8, 16],
+                    help="sizes of the thin part, q1")
+    ap.add_argument("--thin-q2-nd", type=int, nargs="+", default=[4, 8],
+                    help="sizes of the thin part, q2")
     ap.add_argument("--force", action="store_true", help="rerun cached cases")
     ap.add_argument("--smoke", action="store_true",
                     help="every part at Nd = 2 (tests); needs --out-dir, records there")
@@ -434,6 +486,7 @@ def main(argv=None):
         args.scaling_nd, args.kb_nd, args.scaling_ranks = 4, 4, [1, 2]
         args.q2_nd = [2]
         args.setup_nd, args.setup_warm = 4, 0.0
+        args.thin_nd, args.thin_q2_nd = [2], [1]
         args.memory_cases = [(el, mode, 1, 2) for el, mode, _, _ in MEMORY_CASES[:2]]
     args.memory_cases = getattr(args, "memory_cases", MEMORY_CASES)
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
@@ -445,7 +498,7 @@ def main(argv=None):
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
              "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic,
-             "memory": part_memory, "setup": part_setup}
+             "memory": part_memory, "setup": part_setup, "thin": part_thin}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)

@@ -81,6 +81,7 @@ CASES = {
     "newton_pc_rebuild_its": ("5", {}),
     "newton_linesearch_min": ("0.1", {}),
     "newton_pressure_split": ("off", {"poisson": "0.45"}),
+    "multigrid_line_ratio": ("0", {"nd": "8"}),
     "newton_watchdog": ("0", {}),
     "newton_stall_its": ("5", {}),
     "newton_continuation_factor": ("0.5", {}),

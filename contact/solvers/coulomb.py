@@ -402,4 +402,5 @@ class CoulombNewton(LinearCounts, Loop):
             self.log(f"{' ' * self.indent}{it:6d} {self.title} residual norm {res:.6e}{extra}")
 
     def _ksp_hint(self):
-        return self.linear.hint("lu")
+        return self.linear.hint("lu") + ("" if self.split is None else
+                                         self.split.failure_hint())

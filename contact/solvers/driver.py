@@ -78,7 +78,7 @@ class NewtonLoops:
                                    solvers.multigrid, close_first=contact_held,
                                    rho_diag=disc.contact_diagonal, split=split,
                                    friction_held=friction_held)
-        with options.inserted({} if split is None else split.newton_defaults()):
+        with options.inserted(newton_defaults(split, solvers.multigrid)):
             self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap, path)
 
@@ -87,6 +87,15 @@ class NewtonLoops:
         self.inner.solve(x)
         self.inner.pressure(x, l)
         return l.copy() if self.cs.has_friction else None
+
+
+def newton_defaults(split, mg):
+    """The Newton option defaults of the pressure split and of the multigrid (their forcing
+    terms' caps: the smaller)."""
+    out = {} if mg is None else mg.newton_defaults()
+    for k, v in ({} if split is None else split.newton_defaults()).items():
+        out[k] = v if k not in out else str(min(float(v), float(out[k])))
+    return out
 
 
 def load_steps(scene):

@@ -67,6 +67,8 @@ LAMBDA_SPLIT = 4.0
 #: bbar, Nd = 8), 1e-3 and 1e-4 converged (8-9 steps); at 0.499999 the bbar beam took 18
 #: steps, 922 Krylov iterations at 0.01, 9 and 509 at 1e-3
 EW_MAX, EW_LAMBDA = 0.01, 500.0
+#: a failed linear solve of a bbar body beyond this lambda / mu names q2p1 (failure_hint)
+BBAR_LAMBDA_MU = 1e5
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
 DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
@@ -106,6 +108,7 @@ class Split:
         self.mg = mg
         mat = disc.scene["material"]
         self.lam_mu = lam / mu
+        self.element = disc.element
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
@@ -139,6 +142,15 @@ class Split:
         self.M = PETSc.Mat().createNest([[Ag, Gt], [G, self.C]], comm=comm)
         self.zp, self.p = self.C.createVecLeft(), self.C.createVecLeft()
         self.zp.set(0.0)
+
+    def failure_hint(self):
+        """What to add to a failed linear solve's hint: bbar beyond BBAR_LAMBDA_MU names
+        q2p1 (its Q1-P0 pressure is not inf-sup stable; Hertz at nu = 0.4999999, nd = 3 and
+        at 0.499999, nd = 4: KSP breakdown, DIVERGED_MAX_IT; the beam converges there)."""
+        if self.element != "bbar" or self.lam_mu <= BBAR_LAMBDA_MU:
+            return ""
+        return (f"; a bbar body at lambda / mu = {self.lam_mu:.1e}: its Q1-P0 pressure is "
+                f"not inf-sup stable, try -element q2p1")
 
     def newton_defaults(self):
         """The Newton iteration's own option defaults with this split (the command line

@@ -22,9 +22,12 @@ Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
       products at every level (-pc_mg_galerkin both).
 
 Smoothing: Chebyshev with point-block Jacobi (the nodes' 3 x 3 blocks; point Jacobi with
-GPU Vec types: level_pc_type); the coarsest level is factored (LU, redundant on every
-rank) up to COARSE_LU_MAX dofs (COARSE_LU_MAX_SPLIT in the mixed split's u-block), else
-solved by one GAMG cycle.
+GPU Vec types: level_pc_type), or on a level whose cells are thin (an edge shorter than
+the cell's longest / -multigrid_line_ratio, default 6) with the inverse of whole lines of
+nodes across the thin direction (line_smoother.py: on a plate of aspect-20 cells the
+Krylov iterations stop growing with the aspect, runs/results/bench-thin.md); the coarsest
+level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
+(COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
 
 Measured (runs/results/scaling.md section 8): at Nd = 40 on 2 ranks a CG solve of the beam
 without contact takes 7 iterations and 2.0 s with it, 17 and 9.5 s with GAMG, and half the
@@ -34,9 +37,11 @@ A mesh of one level (gmsh, a mesh file, -mesh_refine 0, an odd Nd) gets GAMG, as
 solve given -<prefix>pc_type gamg: the options database has the last word.
 """
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem, mesh, options, petsc_compat
+from contact.solvers import line_smoother
 
 #: the coarsest level is factored (LU) up to this many dofs, else one GAMG cycle solves it.
 #: Hertz (a gmsh coarse level) with q2, 1 rank: nd = 3 (~10,000 coarse dofs) 25 -> 18 s,
@@ -101,6 +106,22 @@ class Multigrid:
         self._C = None                   # P^T D P (D: the Jacobian's change), kept for reuse
         self._added = False              # whether A_c holds + P^T D P now
         self._products = {}              # level j -> the Galerkin operator there (j < L - 1)
+        #: the levels' lines (line_smoother.py) and, where there are any, the cells'
+        #: largest aspect (over all ranks)
+        self.lines = line_smoother.level_lines(hierarchy, level,
+                                               options.get("multigrid_line_ratio"))
+        lv = hierarchy.levels[level]
+        self.aspect = lv.dm.getComm().tompi4py().allreduce(
+            line_smoother.aspect(lv.conn, lv.coords), op=MPI.MAX) if self.lines else 1.0
+
+    def newton_defaults(self):
+        """The Newton iteration's option defaults with this multigrid (the command line
+        wins): with lines (a thin body), forcing terms at most EW_ASPECT / aspect."""
+        if not self.lines:
+            return {}
+        cap = min(options.BY_NAME["newton_ew_max"].default,
+                  line_smoother.EW_ASPECT / self.aspect)
+        return {"newton_ew_max": f"{cap:.3g}"}
 
     @property
     def rediscretised(self):
@@ -181,7 +202,12 @@ class Multigrid:
         # -<prefix>mg_levels_pc_type, -<prefix>mg_coarse_pc_type ... still win
         smoother = level_pc_type()
         for j in range(1, self.n_levels):
-            pc.getMGSmoother(j).getPC().setType(smoother)
+            spc = pc.getMGSmoother(j).getPC()
+            if self.lines.get(j) is not None and not gpu_vecs():
+                spc.setType(PETSc.PC.Type.PYTHON)
+                spc.setPythonContext(line_smoother.LineSmoother(self.lines[j]))
+            else:
+                spc.setType(smoother)
         if self.hierarchy.levels[0].n_dofs > coarse_lu_max:
             pc.getMGCoarseSolve().getPC().setType(PETSc.PC.Type.GAMG)
         prefix = ksp.getOptionsPrefix() or ""

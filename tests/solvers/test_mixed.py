@@ -169,3 +169,15 @@ def test_no_contact_solve_closed_form():
         assert np.abs(U - exact).max() <= 1e-8 * np.abs(exact).max()
         its[mode] = pr.ksp_iterations
     assert its["auto"] < its["off"], its
+
+
+@pytest.mark.parametrize("nu,element,named", [(0.4999999, "bbar", True),
+                                               (0.49999, "bbar", False),
+                                               (0.4999999, "q2p1", False)])
+def test_failed_solve_of_a_rubber_bbar_names_q2p1(nu, element, named):
+    """A failed linear solve's hint names q2p1 for a bbar body past lambda / mu = 1e5
+    (Hertz at nu = 0.4999999, nd 3: KSP breakdown; runs/results/stability-hertznu.md), and
+    nothing for bbar below it or for q2p1 itself."""
+    split = _problem(nu, element).solvers.pressure_split()
+    hint = split.failure_hint()
+    assert ("-element q2p1" in hint) == named and ("lambda / mu = 5.0e+06" in hint) == named

@@ -1,0 +1,248 @@
+"""Line smoothing for thin bodies: the multigrid levels' preconditioner inverts the
+diagonal blocks of whole lines of nodes across the thin direction, not of single nodes.
+
+On a plate whose cells are much thinner than wide (aspect a = wide / thin edge), the
+stiffness couples a node to its neighbours across the thickness a^2 times more strongly
+than to those beside it; point-block Jacobi then smooths only the error that is
+oscillatory across the thickness, while the coarse levels (coarsened in every direction)
+cannot represent an error smooth across it and oscillatory along the plate: the
+multigrid's Krylov iterations grow with a. The textbook cure (Trottenberg, Oosterlee &
+Schüller, Multigrid, 2001, sections 5.1-5.2: line relaxation in the strong direction with
+full coarsening) is this one: every node joined to its neighbours by the cells' short
+edges (shorter than the cell's longest edge / ratio, `-multigrid_line_ratio`) forms one block
+with them, and the smoother's preconditioner is the block-diagonal inverse of the level
+operator over those lines (a thin direction's line has the cells' count through the
+thickness + 1 nodes; a node without short edges is its own 3 x 3 block, as point-block
+Jacobi has it).
+
+The blocks are found once per level from its mesh (`line_blocks`, vectorised: a minimum
+label spread along the short edges); the inverse is formed at each set-up of the level's
+operator (the Newton Jacobian changes its contact rows) from the rank's diagonal block
+(rows and columns it owns: a line cut by the partition is two lines), the blocks of equal
+size inverted together (numpy.linalg.inv; again only the blocks whose values changed), and
+applied as one AIJ MatMult (the smoothing stays in PETSc Mat/Vec operations; not used with
+GPU Vec types, where it was not measured).
+
+Such a body's stiffness is ill-conditioned (a plate's bending, (length / thickness)^2), and
+a relative linear residual eta then leaves an error far above eta in the bending modes:
+with the lines' cheap tight solves, the Newton iteration's forcing terms are at most
+EW_ASPECT / (the cells' largest aspect) (Multigrid.newton_defaults; the command line
+wins). A plate 3 x 1 x 0.03 of aspect-20 cells, q2, Nd = 1: DIVERGED_STAGNATION at
+-newton_ew_max 0.1 (its linear solves reach 0.1 in 1-3 iterations), 7 Newton steps at
+0.005; at Nd = 4 52 steps on the finest level, then 5; runs/results/bench-thin.md.
+"""
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from contact import mesh
+
+#: the Newton forcing terms' cap on a body with lines: EW_ASPECT / (largest cell aspect)
+EW_ASPECT = 0.1
+#: a level whose lines would hold more nodes than this is smoothed point by point (a cell
+#: thin in two directions joins whole planes)
+MAX_LINE_NODES = 64
+#: the 12 edges of the hexahedron: vertex pairs (in HEX_REF order) one coordinate apart
+HEX_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
+                      if np.count_nonzero(mesh.HEX_REF[a] != mesh.HEX_REF[b]) == 1],
+                     dtype=np.intp)
+
+
+def line_blocks(conn, coords, ratio):
+    """The line of every local vertex (a label: the smallest local vertex index on it), or
+    None when no cell has an edge shorter than its longest / ratio or a line would hold
+    more than MAX_LINE_NODES nodes. conn (nc, 8) local vertex indices, coords (nv, 3)."""
+    label, short, longest = _lines(conn, coords, ratio)
+    return label if short and longest <= MAX_LINE_NODES else None
+
+
+def _lines(conn, coords, ratio):
+    """(label, whether any edge is short, the most nodes on a line) of line_blocks; the
+    label of a vertex without short edges is its own index."""
+    nv = coords.shape[0]
+    label = np.arange(nv)
+    if conn.shape[0] == 0 or ratio <= 1.0:
+        return label, False, 1
+    a, b = conn[:, HEX_EDGES[:, 0]], conn[:, HEX_EDGES[:, 1]]
+    length = np.linalg.norm(coords[a] - coords[b], axis=2)
+    short = length * ratio < length.max(axis=1, keepdims=True)
+    if not short.any():
+        return label, False, 1
+    a, b = a[short], b[short]
+    while True:                        # at most (line length) sweeps
+        m = np.minimum(label[a], label[b])
+        new = label.copy()
+        np.minimum.at(new, a, m)
+        np.minimum.at(new, b, m)
+        new = new[new]                 # (pointer jumping: halves the sweeps)
+        if np.array_equal(new, label):
+            break
+        label = new
+    return label, True, int(np.bincount(label, minlength=nv).max())
+
+
+class LineSmoother:
+    """petsc4py Python PC: y = B^-1 x, B the level operator's diagonal blocks over the
+    lines (rows: 3 per owned vertex in the level's order; owned_label: the line label of
+    each owned vertex, in the order of its rows). The operator's pattern is read once
+    (BlockPattern) and again only when it changes; each set-up reads its values."""
+
+    def __init__(self, owned_label):
+        _, inv = np.unique(owned_label, return_inverse=True)
+        self.block = np.repeat(inv, 3)           # each local row's line
+        self.pattern = self.binv = None
+        self._state = None                       # the operator's state at the last values
+
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        n = P.getLocalSize()[0]
+        if n != self.block.size:
+            raise RuntimeError(f"line smoother: the level operator has {n} local rows, "
+                               f"its lines {self.block.size}")
+        indptr, cols, vals = _diagonal_block(P).getValuesCSR()     # (BAIJ too)
+        if self.pattern is None or not self.pattern.matches(indptr, cols):
+            self.pattern = BlockPattern(self.block, indptr, cols)
+            if self.binv is not None:
+                self.binv.destroy()
+            r0 = P.getOwnershipRange()[0]
+            self.binv = PETSc.Mat().createAIJ(
+                ((n, None), (n, None)), comm=P.getComm(),
+                csr=(self.pattern.indptr, self.pattern.cols + r0, self.pattern.values(vals)))
+        else:
+            self._set_values(vals)
+        self._state = P.stateGet()
+
+    def apply(self, pc, x, y):
+        _, P = pc.getOperators()
+        if P.stateGet() != self._state:
+            # a kept preconditioner (-newton_pc_reuse) whose operator changed in place
+            # (the Newton Jacobian's contact rows): PETSc 3.18 sets the levels up again,
+            # 3.26 does not; the inverse follows the operator (on this rank: no collective)
+            indptr, cols, vals = _diagonal_block(P).getValuesCSR()
+            if not self.pattern.matches(indptr, cols):
+                raise RuntimeError("line smoother: the level operator's pattern changed "
+                                   "without a set-up")
+            self._set_values(vals)
+            self._state = P.stateGet()
+        self.binv.mult(x, y)
+
+    def _set_values(self, vals):
+        """The inverse's values for the operator's values vals, in place (the rank's own
+        diagonal block: local, not collective)."""
+        own = _diagonal_block(self.binv)
+        own.setValuesCSR(self.pattern.indptr, self.pattern.cols, self.pattern.values(vals))
+        own.assemble()
+
+    def view(self, pc, viewer):
+        sizes = np.bincount(self.block)
+        viewer.printfASCII(f"  line smoother: {sizes.size} blocks of {sizes.min()} to "
+                           f"{sizes.max()} rows (lines across the thin direction)\n")
+
+    def destroy(self, pc):
+        if self.binv is not None:
+            self.binv.destroy()
+            self.binv = None
+
+
+def _diagonal_block(M):
+    """The rank's own rows and columns of M (M itself on one process)."""
+    return M.getDiagonalBlock() if M.getComm().getSize() > 1 else M
+
+
+class BlockPattern:
+    """Where the entries of an operator's block-diagonal part (its rows and columns in one
+    block of `block`, each local row's block) go in the dense blocks (those of one size
+    stacked: numpy.linalg.inv inverts them together), and the CSR pattern (indptr, cols:
+    local) of the inverse. values(vals) is that inverse's values for the operator's
+    values vals, in CSR order."""
+
+    def __init__(self, block, indptr, cols):
+        n = block.size
+        self._indptr, self._cols = indptr.copy(), cols.copy()
+        self._last = {}                          # group -> (its blocks, their inverses)
+        block = block.astype(np.int32)
+        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(indptr))
+        inside = np.flatnonzero(block[rows] == block[cols])   # the block-diagonal part
+        rows, cols = rows[inside], cols[inside]
+        order = np.argsort(block, kind="stable")              # rows grouped by block
+        size = np.bincount(block)
+        start = np.concatenate([[0], np.cumsum(size)])
+        pos = np.empty(n, dtype=np.intp)
+        pos[order] = np.arange(n) - start[block[order]]       # a row's place in its block
+        self.groups = []          # (s, nb, entries of vals, their flat places in the stack)
+        first = np.empty(n, dtype=np.int64)      # where row r's inverse row starts there
+        offset = 0
+        for s in np.unique(size):
+            blocks = np.flatnonzero(size == s)
+            index = np.full(size.size, -1, dtype=np.intp)
+            index[blocks] = np.arange(blocks.size)
+            b = index[block[rows]]
+            mine = np.flatnonzero(b >= 0)
+            places = (b[mine] * s + pos[rows[mine]]) * s + pos[cols[mine]]
+            self.groups.append((s, blocks.size, inside[mine], places))
+            its = np.flatnonzero(size[block] == s)            # the rows of these blocks
+            first[its] = offset + (index[block[its]] * s + pos[its]) * s
+            offset += blocks.size * s * s
+        # row r of the inverse: its block's rows (in order), the values at first[r] + j
+        width = size[block]
+        self.indptr = np.concatenate([[0], np.cumsum(width)]).astype(PETSc.IntType)
+        j = np.arange(self.indptr[-1]) - np.repeat(self.indptr[:-1], width)
+        self.order = np.repeat(first, width) + j
+        self.cols = order[np.repeat(start[block], width) + j].astype(PETSc.IntType)
+
+    def matches(self, indptr, cols):
+        return np.array_equal(indptr, self._indptr) and np.array_equal(cols, self._cols)
+
+    def values(self, vals):
+        """The inverse's values in CSR order for the operator's values vals (the blocks
+        that did not change since the last call are not inverted again)."""
+        out = []
+        for k, (s, nb, entries, places) in enumerate(self.groups):
+            dense = np.zeros((nb, s, s))
+            dense.reshape(-1)[places] = vals[entries]
+            old, inv = self._last.get(k, (None, None))
+            if old is None:
+                inv = np.linalg.inv(dense)
+            else:
+                changed = np.flatnonzero((dense != old).any(axis=(1, 2)))
+                if changed.size:
+                    inv[changed] = np.linalg.inv(dense[changed])
+            self._last[k] = (dense, inv)
+            out.append(inv.reshape(-1))
+        return np.concatenate(out)[self.order]
+
+
+def aspect(conn, coords):
+    """The largest aspect (longest / shortest edge) of the cells (local), 1 without any."""
+    if conn.shape[0] == 0:
+        return 1.0
+    length = np.linalg.norm(coords[conn[:, HEX_EDGES[:, 0]]] - coords[conn[:, HEX_EDGES[:, 1]]],
+                            axis=2)
+    return float((length.max(axis=1) / length.min(axis=1)).max())
+
+
+def level_lines(hierarchy, level, ratio):
+    """{j: the line label of each owned vertex of level j, in the order of its rows} for
+    the multigrid levels j = 1 .. level of `hierarchy` with lines (none for ratio 0). The
+    choice is the same on every rank: a level has lines where any rank's cells have a short
+    edge and no line anywhere holds more than MAX_LINE_NODES nodes (a rank without short
+    edges smooths its nodes one by one, as point-block Jacobi)."""
+    out = {}
+    if not ratio:
+        return out
+    for j in range(1, level + 1):
+        lv = hierarchy.levels[j]
+        comm = lv.dm.getComm().tompi4py()
+        label, short, longest = _lines(lv.conn, lv.coords, ratio)
+        if not comm.allreduce(short, op=MPI.LOR) or \
+                comm.allreduce(longest, op=MPI.MAX) > MAX_LINE_NODES:
+            continue
+        lg = np.asarray(lv.dm.getLGMap().getBlockIndices(), dtype=np.int64)
+        g = lv.dm.getGlobalVec()
+        lo, hi = (i // 3 for i in g.getOwnershipRange())
+        lv.dm.restoreGlobalVec(g)
+        own = np.flatnonzero((lg >= lo) & (lg < hi))
+        row_label = np.empty(hi - lo, dtype=np.int64)
+        row_label[lg[own] - lo] = label[own]
+        out[j] = row_label
+    return out

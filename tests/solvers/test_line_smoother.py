@@ -1,0 +1,178 @@
+"""Line smoothing for thin bodies (contact/solvers/line_smoother.py): the lines are the
+columns of nodes across the thin direction (checked against the box's coordinates), the
+smoother's matrix is the inverse of the operator's block-diagonal part (checked against a
+dense inverse, also after some blocks change), and on a plate of aspect-20 cells the
+default solver's Krylov iterations fall at least threefold, to the same answer, on 1, 2 and
+more ranks; point-block Jacobi (-multigrid_line_ratio 0) is the negative control."""
+import numpy as np
+import pytest
+from conftest import fields, paper_scene, rel_err, skip_in_parallel, solve
+
+from petsc4py import PETSc
+
+from contact import mesh, options, scene as scenes
+from contact.solvers import line_smoother
+from contact.solvers.loop import ConvergenceError
+
+
+def _box(n, size):
+    """A box of n[0] x n[1] x n[2] cells of `size`: (conn, coords) in HEX_REF order."""
+    axes = [np.arange(k + 1) * h for k, h in zip(n, size)]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    idx = np.arange(X.shape[0]).reshape([k + 1 for k in n])
+    i, j, k = (a.ravel() for a in np.meshgrid(*[np.arange(k) for k in n], indexing="ij"))
+    ref = ((mesh.HEX_REF + 1) // 2).astype(int)
+    conn = np.stack([idx[i + a, j + b, k + c] for a, b, c in ref], axis=1)
+    return conn, X
+
+
+@skip_in_parallel
+@pytest.mark.parametrize("thin", [0, 1, 2])
+def test_lines_are_the_columns_across_the_thin_direction(thin):
+    """Cells 0.1 x 0.1 x 0.01 (the thin direction turned to each axis): every line is the
+    set of nodes sharing the other two coordinates; cubes and a ratio above the aspect
+    give none, and lines longer than MAX_LINE_NODES are refused."""
+    n, size = [4, 3, 5], [0.1, 0.1, 0.1]
+    size[thin] = 0.01
+    conn, X = _box(n, size)
+    label = line_blocks = line_smoother.line_blocks(conn, X, ratio=4.0)
+    assert line_blocks is not None
+    others = np.delete(np.arange(3), thin)
+    key = np.unique(np.round(X[:, others] / 0.1).astype(int), axis=0, return_inverse=True)[1]
+    assert np.unique(label).size == np.unique(key).size == (n[others[0]] + 1) * (
+        n[others[1]] + 1)
+    same_label = label[:, None] == label[None, :]
+    assert np.array_equal(same_label, key.ravel()[:, None] == key.ravel()[None, :])
+    assert line_smoother.line_blocks(conn, X, ratio=20.0) is None
+    assert line_smoother.line_blocks(*_box([2, 2, 2], [0.1] * 3), ratio=1.5) is None
+    long = [2, 2, 2]
+    long[thin] = line_smoother.MAX_LINE_NODES
+    assert line_smoother.line_blocks(*_box(long, size), ratio=4.0) is None
+
+
+@skip_in_parallel
+def test_block_inverse_against_a_dense_inverse():
+    """BlockPattern.values: the inverse of the entries whose row and column lie in one
+    block (blocks of 3, 6 and 9 rows, scattered), as numpy inverts the dense matrix with the
+    other entries zeroed; again after one block's values change (only it is inverted
+    again: the others' inverses are kept, and still right)."""
+    rng = np.random.default_rng(7)
+    block = np.repeat(rng.permutation([0, 1, 0, 2, 2, 1, 3, 0, 4, 4, 4, 5]), 3)
+    n = block.size
+    mask = (rng.random((n, n)) < 0.5) | np.eye(n, dtype=bool)
+    A = np.where(mask, rng.random((n, n)), 0.0) + n * np.eye(n)
+    indptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))])
+    cols = np.nonzero(mask)[1]
+    bp = line_smoother.BlockPattern(block, indptr, cols)
+
+    def inverse(vals):
+        dense = np.zeros((n, n))
+        dense[np.repeat(np.arange(n), np.diff(bp.indptr)), bp.cols] = bp.values(vals)
+        return dense
+
+    same = block[:, None] == block[None, :]
+    for change in (None, 2):
+        if change is not None:
+            A[np.ix_(block == change, block == change)] *= 1.5
+        got = inverse(A[mask])
+        want = np.linalg.inv(np.where(same, A, 0.0))
+        assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+        assert np.all(got[~same] == 0)
+    assert bp.matches(indptr, cols) and not bp.matches(indptr, cols[::-1])
+
+
+def _plate(nd, ratio):
+    """A plate 3 x 1 x 0.03 of 5 nd x 2 nd x nd cells (aspect 20) pressed on its face."""
+    sc = paper_scene(nd=nd, mode="newton")
+    sc["mesh"]["upper"][2] = 0.03
+    sc["mesh"]["cells_per_nd"] = [5, 2, 1]
+    sc["boundary"]["top"]["plane"][1] = 0.03
+    with options.inserted({"multigrid_line_ratio": str(ratio)}):
+        return solve(scenes.validate(sc))
+
+
+def test_thin_plate_krylov_iterations_fall_with_lines():
+    """The plate at nd 8 (levels 2, 4, 8): measured 101 Krylov iterations in all with
+    point-block Jacobi (its longest solve 55) and 30 with lines (longest 10), on 1 and 2
+    ranks; the same answer (the Newton tolerance apart)."""
+    lines, points = _plate(8, 4.0), _plate(8, 0.0)
+    assert lines.converged and points.converged
+    its = lines.iterations()["ksp_total"], points.iterations()["ksp_total"]
+    assert 3 * its[0] <= its[1], its
+    (u, p), (ur, pr) = fields(lines), fields(points)
+    assert rel_err(u, ur) < 1e-7 and np.abs(p - pr).max() < 1e-7 * np.abs(pr).max()
+
+
+def test_lines_only_where_cells_are_thin():
+    """The default ratio (4) gives the plate's levels lines (each holding its nd + 1 nodes
+    across the thickness, 3 rows each: as many rows as the level has) and the paper's beam
+    (cubes) none: it runs as before, with point-block Jacobi."""
+    pr = _plate(4, 4.0)
+    mg = pr.solvers.multigrid
+    assert sorted(mg.lines) == list(range(1, mg.n_levels))
+    for j, label in mg.lines.items():
+        nd = pr.hierarchy.levels[j].nd
+        counts = np.bincount(np.unique(label, return_inverse=True)[1])
+        assert 3 * label.size == pr.hierarchy.levels[j].n_dofs or pr.comm.getSize() > 1
+        assert counts.max() <= nd + 1 and (pr.comm.getSize() > 1 or counts.min() == nd + 1)
+    beam = solve(paper_scene(nd=8, mode="newton"))
+    assert beam.solvers.multigrid is not None and beam.solvers.multigrid.lines == {}
+    assert beam.solvers.multigrid.newton_defaults() == {}
+
+
+def test_thin_body_newton_forcing_terms_are_tighter():
+    """With lines, the Newton forcing terms are at most EW_ASPECT / aspect (0.005 for the
+    aspect-20 plate): q2 at Nd 1 then converges (measured 7 steps, 1 and 2 ranks), and the
+    same run with the loose default cap given (-newton_ew_max 0.1) stagnates (1 rank,
+    PETSc 3.18: its linear solves reach 0.1 in 1-3 iterations, far from the step)."""
+    def plate(extra):
+        sc = paper_scene(nd=1, mode="newton")
+        sc["mesh"]["upper"][2] = 0.03
+        sc["mesh"]["cells_per_nd"] = [5, 2, 1]
+        sc["mesh"]["element"] = "q2"
+        sc["boundary"]["top"]["plane"][1] = 0.03
+        with options.inserted({"multigrid_line_ratio": "4", **extra}):
+            return solve(scenes.validate(sc))
+
+    pr = plate({})
+    mg = pr.solvers.multigrid
+    assert abs(mg.aspect - 20.0) < 1e-9
+    assert mg.newton_defaults() == {"newton_ew_max": "0.005"}
+    assert pr.converged and pr.inner.iterations <= 10, pr.inner.iterations
+    if pr.comm.getSize() == 1 and PETSc.Sys.getVersion()[:2] == (3, 18):
+        with pytest.raises(ConvergenceError, match="DIVERGED_STAGNATION"):
+            plate({"newton_ew_max": "0.1"})
+
+
+@skip_in_parallel
+def test_kept_smoother_follows_its_operator_changed_in_place():
+    """A kept preconditioner (-newton_pc_reuse) is not set up again when its operator
+    changes in place (PETSc 3.26; 3.18 sets the multigrid's levels up anyway): the line
+    smoother's next application then uses the operator's new values, y = B_new^-1 x
+    (against numpy's inverse; the stale B_old^-1 x is far from it)."""
+    block = np.repeat([0, 0, 1, 1], 3)
+    n = block.size
+    rng = np.random.default_rng(3)
+    A = rng.random((n, n)) + n * np.eye(n)
+    M = PETSc.Mat().createAIJ(n, comm=PETSc.COMM_SELF)
+    M.setUp()
+    M.setValues(range(n), range(n), A.ravel())
+    M.assemble()
+    pc = PETSc.PC().create(comm=PETSc.COMM_SELF)
+    pc.setOperators(M, M)
+    pc.setType(PETSc.PC.Type.PYTHON)
+    pc.setPythonContext(line_smoother.LineSmoother(np.array([0, 0, 1, 1])))
+    pc.setReusePreconditioner(True)
+    pc.setUp()
+    x, y = M.createVecs()
+    x.setArray(rng.random(n))
+    same = block[:, None] == block[None, :]
+    old = np.linalg.solve(np.where(same, A, 0.0), x.getArray())
+    A[:6, :6] *= 3.0
+    M.setValues(range(6), range(6), A[:6, :6].ravel())
+    M.assemble()
+    pc.setUp()                              # (kept: reuse)
+    pc.apply(x, y)
+    new = np.linalg.solve(np.where(same, A, 0.0), x.getArray())
+    assert np.abs(y.getArray() - new).max() < 1e-12 * np.abs(new).max()
+    assert np.abs(old - new).max() > 0.1 * np.abs(new).max()
