@@ -725,7 +725,7 @@ SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
          "fgrid-nd3-F10", "gap-varying-xy-nd2-F10", "held-nd8-s2-q0.8", "held-tall-nd4-tips",
          "rubber-beam-bbar-0.4999999", "fbig-beam-nd4-F1e6", "plate-T0.03-a10-q1-nd1",
-         "hertznu-q1-nd2-0.3", "scenefile-billion-laughs")
+         "plate-T0.03-a5-q2-nd1", "hertznu-q1-nd2-0.3", "scenefile-billion-laughs")
 
 
 def main(argv=None):
