@@ -107,7 +107,7 @@ def test_lines_only_where_cells_are_thin():
     """The default ratio (4) gives the plate's levels lines (each holding its nd + 1 nodes
     across the thickness, 3 rows each: as many rows as the level has) and the paper's beam
     (cubes) none: it runs as before, with point-block Jacobi."""
-    pr = _plate(4, 4.0)
+    pr = _plate(8, 4.0)
     mg = pr.solvers.multigrid
     assert sorted(mg.lines) == list(range(1, mg.n_levels))
     for j, label in mg.lines.items():
