@@ -354,7 +354,7 @@ _XI27 = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1
 _N27 = _shape(_XI27)                                       # (27, 8)
 
 
-def _owned_blocks(dm):
+def owned_blocks(dm):
     """(global block index of every local vertex, owned mask, owned block range)."""
     lg = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
     g = dm.getGlobalVec()
@@ -439,8 +439,8 @@ def prolongation(coarse, fine):
     if ncf != 8 * ncc:
         raise MeshError(f"level {fine.nd} is not the regular refinement of level {coarse.nd}"
                         f" on this rank ({ncf} cells, {ncc} coarse)")
-    lgf, ownf, (f0, f1) = _owned_blocks(fine.dm)
-    lgc, _, (c0, c1) = _owned_blocks(coarse.dm)
+    lgf, ownf, (f0, f1) = owned_blocks(fine.dm)
+    lgc, _, (c0, c1) = owned_blocks(coarse.dm)
     # each owned fine vertex once, with a fine cell holding it (and so its parent cell)
     flat = fine.conn.ravel()
     verts, first = np.unique(flat, return_index=True)

@@ -36,6 +36,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import mesh
+from contact.mesh.hierarchy import owned_blocks
 
 #: the Newton forcing terms' cap on a body with lines: EW_ASPECT / (largest cell aspect)
 EW_ASPECT = 0.1
@@ -63,8 +64,7 @@ def _lines(conn, coords, ratio):
     label = np.arange(nv)
     if conn.shape[0] == 0 or ratio <= 1.0:
         return label, False, 1
-    a, b = conn[:, HEX_EDGES[:, 0]], conn[:, HEX_EDGES[:, 1]]
-    length = np.linalg.norm(coords[a] - coords[b], axis=2)
+    a, b, length = _edges(conn, coords)
     short = length * ratio < length.max(axis=1, keepdims=True)
     if not short.any():
         return label, False, 1
@@ -99,18 +99,7 @@ class LineSmoother:
         if n != self.block.size:
             raise RuntimeError(f"line smoother: the level operator has {n} local rows, "
                                f"its lines {self.block.size}")
-        indptr, cols, vals = _diagonal_block(P).getValuesCSR()     # (BAIJ too)
-        if self.pattern is None or not self.pattern.matches(indptr, cols):
-            self.pattern = BlockPattern(self.block, indptr, cols)
-            if self.binv is not None:
-                self.binv.destroy()
-            r0 = P.getOwnershipRange()[0]
-            self.binv = PETSc.Mat().createAIJ(
-                ((n, None), (n, None)), comm=P.getComm(),
-                csr=(self.pattern.indptr, self.pattern.cols + r0, self.pattern.values(vals)))
-        else:
-            self._set_values(vals)
-        self._state = P.stateGet()
+        self._update(P, setup=True)
 
     def apply(self, pc, x, y):
         _, P = pc.getOperators()
@@ -118,13 +107,27 @@ class LineSmoother:
             # a kept preconditioner (-newton_pc_reuse) whose operator changed in place
             # (the Newton Jacobian's contact rows): PETSc 3.18 sets the levels up again,
             # 3.26 does not; the inverse follows the operator (on this rank: no collective)
-            indptr, cols, vals = _diagonal_block(P).getValuesCSR()
-            if not self.pattern.matches(indptr, cols):
+            self._update(P, setup=False)
+        self.binv.mult(x, y)
+
+    def _update(self, P, setup):
+        """The inverse for P's values: a new Mat where the pattern is new (collective: at
+        set-up only), else its values in place."""
+        indptr, cols, vals = _diagonal_block(P).getValuesCSR()     # (BAIJ too)
+        if self.pattern is None or not self.pattern.matches(indptr, cols):
+            if not setup:
                 raise RuntimeError("line smoother: the level operator's pattern changed "
                                    "without a set-up")
+            self.pattern = BlockPattern(self.block, indptr, cols)
+            if self.binv is not None:
+                self.binv.destroy()
+            n, r0 = self.block.size, P.getOwnershipRange()[0]
+            self.binv = PETSc.Mat().createAIJ(
+                ((n, None), (n, None)), comm=P.getComm(),
+                csr=(self.pattern.indptr, self.pattern.cols + r0, self.pattern.values(vals)))
+        else:
             self._set_values(vals)
-            self._state = P.stateGet()
-        self.binv.mult(x, y)
+        self._state = P.stateGet()
 
     def _set_values(self, vals):
         """The inverse's values for the operator's values vals, in place (the rank's own
@@ -212,12 +215,17 @@ class BlockPattern:
         return np.concatenate(out)[self.order]
 
 
+def _edges(conn, coords):
+    """The cells' 12 edges: their end vertices a, b and lengths, each (nc, 12)."""
+    a, b = conn[:, HEX_EDGES[:, 0]], conn[:, HEX_EDGES[:, 1]]
+    return a, b, np.linalg.norm(coords[a] - coords[b], axis=2)
+
+
 def aspect(conn, coords):
     """The largest aspect (longest / shortest edge) of the cells (local), 1 without any."""
     if conn.shape[0] == 0:
         return 1.0
-    length = np.linalg.norm(coords[conn[:, HEX_EDGES[:, 0]]] - coords[conn[:, HEX_EDGES[:, 1]]],
-                            axis=2)
+    length = _edges(conn, coords)[2]
     return float((length.max(axis=1) / length.min(axis=1)).max())
 
 
@@ -237,11 +245,8 @@ def level_lines(hierarchy, level, ratio):
         if not comm.allreduce(short, op=MPI.LOR) or \
                 comm.allreduce(longest, op=MPI.MAX) > MAX_LINE_NODES:
             continue
-        lg = np.asarray(lv.dm.getLGMap().getBlockIndices(), dtype=np.int64)
-        g = lv.dm.getGlobalVec()
-        lo, hi = (i // 3 for i in g.getOwnershipRange())
-        lv.dm.restoreGlobalVec(g)
-        own = np.flatnonzero((lg >= lo) & (lg < hi))
+        lg, owned, (lo, hi) = owned_blocks(lv.dm)
+        own = np.flatnonzero(owned)
         row_label = np.empty(hi - lo, dtype=np.int64)
         row_label[lg[own] - lo] = label[own]
         out[j] = row_label
