@@ -1,0 +1,305 @@
+"""Dual mortar coupling of two contact surfaces of bilinear (q1) quadrilaterals in 3D.
+
+A slave surface Gamma_s (displacement shape functions N_j) and a master surface Gamma_m
+(N^m_l), both 4-node faces, counter-clockwise seen from outside their own body (the
+right-hand rule gives the outward normal: the master's faces the slave). The Lagrange
+multiplier is discretised on the slave side by the DUAL shape functions Phi_j,
+biorthogonal to the N_k (Wohlmuth 2000, 2011; Popp, Gee & Wall 2009; Popp et al. 2010):
+  int_e Phi_j N_k ds = delta_jk int_e N_j ds   on every slave face e,
+  Phi_j = sum_k A_e[j, k] N_k,  A_e = D_e M_e^-1,  D_e = diag(int_e N_j),  M_e = [int_e N_j N_k]
+(so sum_j Phi_j = 1). The mortar matrices are then
+  D[j, k] = int_Gamma_s Phi_j N_k ds = delta_jk D_j,  D_j = int_Gamma_s N_j ds (diagonal),
+  M[j, l] = int_{Gamma_s cap proj(Gamma_m)} Phi_j (N^m_l o proj) ds,
+the master basis evaluated at the master point that projects onto the slave point.
+D_e and M_e use 3x3 Gauss points on the actual (possibly warped) face: exact for flat
+faces (N_j N_k |J| is cubic in each reference coordinate), so D_j is then the lumped
+weight of contact/fem/contactset.py.
+
+M by segment-based integration (Puso 2004; Popp et al. 2010, section 4): for each
+candidate pair (slave face, master face) (candidate_pairs: inflated bounding boxes in a
+uniform bucket grid, no all-pairs matrix)
+  1. the auxiliary plane through the slave face's centre x0 with its centre unit normal
+     n0 ~ (x2 - x0) x (x3 - x1), in-plane axes t1 (the projected d x / d xi), t2 = n0 x t1;
+  2. the 4 slave and the 4 master vertices projected onto it along n0 (2D coordinates);
+     edges are straight, so the projected faces are exactly these quadrilaterals;
+  3. the master quadrilateral (clockwise there when it faces the slave: pairs where it
+     is counter-clockwise face away and are dropped; the facing ones reversed) clipped
+     by the convex slave quadrilateral (Sutherland-Hodgman, all pairs at once, the
+     polygons as padded arrays with a vertex count); polygons under 1e-12 of the slave
+     face's projected area are dropped;
+  4. the clip polygon split into triangles fanned from its vertex centroid, each
+     integrated by a collapsed (Duffy) Gauss-Legendre rule of n x n points, exact for
+     polynomials of degree 2 n - 2 in the plane (default n = 3: degree 4);
+  5. each point p mapped to the slave's and the master's reference coordinates by
+     inverting the 2D bilinear maps of the projected quadrilaterals (Newton), its weight
+     the triangle's area times |c| / (c . n0), c = dx/dxi x dx/deta of the slave face
+     at that point: the slave surface's area element over the plane's, so that M
+     integrates over the slave surface with the same measure as D (on a warped slave
+     face sum_l M[j, l] = D_j again where the master covers it; the factor is 1 on flat
+     faces).
+On flat faces whose projected maps are affine (parallelograms) Phi_j and N^m_l are
+quadratic in p and the rule with n = 3 is exact; on distorted quadrilaterals the inverse
+bilinear map is not polynomial and the error falls with n (tests/fem/test_mortar.py).
+
+Not here: the boundary modification of the dual basis at the edges of the slave surface
+(Wohlmuth; Popp et al. 2010), crosspoints, the gap and the linearisation.
+"""
+from typing import NamedTuple
+
+import numpy as np
+
+#: the reference square's corners, counter-clockwise (contact/fem/element.py's face order)
+_QUAD = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+_G = np.sqrt(0.6)
+#: 3x3 Gauss points and weights on the reference square (the slave faces' D_e, M_e)
+_GP9 = np.array([[a, b] for a in (-_G, 0.0, _G) for b in (-_G, 0.0, _G)])
+_W9 = np.prod(np.where(_GP9 == 0.0, 8.0 / 9.0, 5.0 / 9.0), axis=1)
+#: face pairs handled at once (bounds the temporaries: ~50 kB per pair with n = 3)
+CHUNK = 2048
+#: Newton iterations at most for the inverse bilinear maps, and the step that ends them
+_NEWTON, _NEWTON_TOL = 30, 1e-14
+#: clip polygons with less area than this fraction of the slave face's are dropped
+_SLIVER = 1e-12
+
+
+class Mortar(NamedTuple):
+    """The mortar coupling of a slave and a master surface (mortar_matrices)."""
+    D: np.ndarray          #: (ns,) D_j = int N_j over the slave faces around j
+    rows: np.ndarray       #: M in coordinate form: slave node of each entry
+    cols: np.ndarray       #: master node of each entry
+    values: np.ndarray     #: M[rows, cols] (each (row, col) once, sorted by row, col)
+    normals: np.ndarray    #: (ns, 3) averaged unit normals at the slave nodes
+    overlap: np.ndarray    #: (ns,) int N_j over the part of the slave faces covered
+    covered: np.ndarray    #: (ns,) bool: some master face overlaps a face around j
+
+
+def shape(xi):
+    """Bilinear N_a (..., 4) and dN_a/dxi (..., 4, 2) at reference points xi (..., 2)."""
+    f = 1.0 + xi[..., None, :] * _QUAD                              # (..., 4, 2)
+    dN = np.stack([_QUAD[:, 0] * f[..., 1], _QUAD[:, 1] * f[..., 0]], axis=-1) / 4.0
+    return f[..., 0] * f[..., 1] / 4.0, dN
+
+
+def nodal_normals(x, faces):
+    """Unit normals at the nodes x (n, 3) of the faces (f, 4): at each node the mean of
+    its faces' unit normals there (at a corner: the cross product of the face's two edges
+    from it, next x previous), normalised (Popp et al. 2010); zero at nodes of no face."""
+    X = x[faces]
+    c = np.cross(np.roll(X, -1, axis=1) - X, np.roll(X, 1, axis=1) - X)
+    c /= np.linalg.norm(c, axis=2, keepdims=True)
+    n = np.zeros_like(x, dtype=float)
+    np.add.at(n, faces.ravel(), c.reshape(-1, 3))
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(norm > 0.0, norm, 1.0)
+
+
+def dual_coefficients(X):
+    """(A, De) of faces X (f, 4, 3): the dual basis Phi_j = sum_k A[f, j, k] N_k (f, 4, 4)
+    and De[f, j] = int_f N_j ds (f, 4), by 3x3 Gauss points on the bilinear face."""
+    N, dN = shape(_GP9)
+    dx = np.einsum("gad,fai->fgdi", dN, X)
+    J = np.linalg.norm(np.cross(dx[:, :, 0], dx[:, :, 1]), axis=2) * _W9    # (f, g)
+    Me = np.einsum("ga,gb,fg->fab", N, N, J)
+    De = Me.sum(axis=2)                                           # sum_k N_k = 1
+    # A = De Me^-1, so A^T = Me^-1 De (Me symmetric)
+    A = np.linalg.solve(Me, De[:, :, None] * np.eye(4)).transpose(0, 2, 1)
+    return A, De
+
+
+def face_boxes(x, faces, inflate):
+    """Bounding boxes (lo, hi) (f, 3) of the faces, each grown on every side by inflate
+    times its largest extent (the gap an overlap may span)."""
+    X = x[faces]
+    lo, hi = X.min(axis=1), X.max(axis=1)
+    pad = inflate * (hi - lo).max(axis=1, keepdims=True)
+    return lo - pad, hi + pad
+
+
+def _cells(lo, hi, origin, size, dims):
+    """(key, box): the bucket-grid cells (linear index) each box overlaps, at most 2 per
+    axis (size >= every box's extent), and the box of each."""
+    i0 = np.floor((lo - origin) / size).astype(np.int64)
+    i1 = np.floor((hi - origin) / size).astype(np.int64)
+    off = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    ijk = i0[:, None, :] + off[None]                                 # (f, 8, 3)
+    ok = np.all(ijk <= i1[:, None, :], axis=2)
+    key = (ijk[..., 0] * dims[1] + ijk[..., 1]) * dims[2] + ijk[..., 2]
+    box = np.broadcast_to(np.arange(lo.shape[0])[:, None], ok.shape)
+    return key[ok], box[ok]
+
+
+def candidate_pairs(xs, fs, xm, fm, inflate=0.5):
+    """(slave face, master face) pairs (p, 2) whose boxes (face_boxes) overlap, sorted,
+    found through a uniform grid of cells as large as the largest box: each box is put in
+    the <= 8 cells it overlaps, pairs meet in a shared cell, then are checked and deduplicated
+    (work and memory of the order of the faces and pairs, not of their product)."""
+    if fs.shape[0] == 0 or fm.shape[0] == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    slo, shi = face_boxes(xs, fs, inflate)
+    mlo, mhi = face_boxes(xm, fm, inflate)
+    size = 1.001 * max((shi - slo).max(), (mhi - mlo).max())
+    origin = np.minimum(slo.min(axis=0), mlo.min(axis=0))
+    dims = np.floor((np.maximum(shi.max(axis=0), mhi.max(axis=0)) - origin) / size) + 2
+    ks, bs = _cells(slo, shi, origin, size, dims.astype(np.int64))
+    km, bm = _cells(mlo, mhi, origin, size, dims.astype(np.int64))
+    order = np.argsort(km, kind="stable")
+    km, bm = km[order], bm[order]
+    first = np.searchsorted(km, ks, side="left")
+    count = np.searchsorted(km, ks, side="right") - first
+    s = np.repeat(bs, count)
+    m = bm[np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())]
+    hit = np.all((slo[s] <= mhi[m]) & (mlo[m] <= shi[s]), axis=1)
+    code = np.unique(s[hit] * fm.shape[0] + m[hit])
+    return np.stack([code // fm.shape[0], code % fm.shape[0]], axis=1)
+
+
+def _cross2(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _planes(X):
+    """The auxiliary planes of faces X (f, 4, 3): centre x0 (f, 3) and the rows
+    (t1, t2, n0) (f, 3, 3)."""
+    n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    t = X[:, 1] - X[:, 0] + X[:, 2] - X[:, 3]                        # 2 dx/dxi at the centre
+    t -= (t * n).sum(axis=1, keepdims=True) * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return X.mean(axis=1), np.stack([t, np.cross(n, t), n], axis=1)
+
+
+def _clip(S, P):
+    """Sutherland-Hodgman: polygons P (p, c, 2) clipped by the convex counter-clockwise
+    quadrilaterals S (p, 4, 2), one edge's half-plane after the other (a vertex on the
+    edge is inside). Returns the clip polygons (p, c', 2), padded, and their vertex
+    counts (p,)."""
+    k = np.full(P.shape[0], P.shape[1])
+    for e in range(4):
+        a, b = S[:, e, None, :], S[:, (e + 1) % 4, None, :]
+        i = np.arange(P.shape[1])
+        valid = i < k[:, None]
+        nxt = np.where(i + 1 < k[:, None], i + 1, 0)
+        d = _cross2(b - a, P - a)                                    # >= 0: inside
+        dn = np.take_along_axis(d, nxt, axis=1)
+        Pn = np.take_along_axis(P, nxt[..., None], axis=1)
+        inside, inside_n = d >= 0.0, dn >= 0.0
+        t = d / np.where(inside != inside_n, d - dn, 1.0)
+        cut = P + t[..., None] * (Pn - P)                            # the edge's crossing
+        out = np.stack([P, cut], axis=2).reshape(P.shape[0], -1, 2)
+        keep = np.stack([valid & inside, valid & (inside != inside_n)], axis=2)
+        keep = keep.reshape(P.shape[0], -1)
+        k = keep.sum(axis=1)
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :k.max(initial=0)]
+        P = np.take_along_axis(out, order[..., None], axis=1)
+    return P, k
+
+
+def _inverse_bilinear(Q, p):
+    """Reference points xi (t, g, 2) of points p (t, g, 2) under the 2D bilinear maps of
+    the quadrilaterals Q (t, 4, 2): Newton from the centre."""
+    xi = np.zeros_like(p)
+    for _ in range(_NEWTON):
+        N, dN = shape(xi)
+        r = np.einsum("tga,tai->tgi", N, Q) - p
+        J = np.einsum("tgad,tai->tgid", dN, Q)                      # dx_i / dxi_d
+        det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+        step = np.stack([J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1],
+                         J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]], axis=-1)
+        step /= det[..., None]
+        xi -= step
+        if np.abs(step).max(initial=0.0) < _NEWTON_TOL:
+            break
+    return xi
+
+
+def triangle_rule(n):
+    """Collapsed Gauss-Legendre rule of n x n points on a triangle (Duffy; Stroud 1971):
+    barycentric coordinates (g, 2) of the second and third vertices and weights (g,)
+    summing to 1 (times the area: the integral), exact for degree 2 n - 2."""
+    s, w = np.polynomial.legendre.leggauss(n)
+    s, w = (s + 1.0) / 2.0, w / 2.0
+    a, b = np.meshgrid(s, s, indexing="ij")
+    wa, wb = np.meshgrid(w, w, indexing="ij")
+    lam = np.stack([a.ravel(), (b * (1.0 - a)).ravel()], axis=1)
+    return lam, (2.0 * wa * wb * (1.0 - a)).ravel()
+
+
+def _segments(Xs, As, Xm, lam, wq):
+    """Mortar integrals of the face pairs (slave Xs (p, 4, 3) with dual coefficients As
+    (p, 4, 4), master Xm (p, 4, 3)): per clip triangle, its pair (t,), the local M
+    (t, 4, 4) and int N_j (t, 4) over it (module docstring, steps 1-5)."""
+    x0, R = _planes(Xs)
+    S = np.einsum("pai,pki->pak", Xs - x0[:, None], R[:, :2])       # (p, 4, 2)
+    Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])
+    area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
+    facing = 0.5 * _cross2(Pm[:, 2] - Pm[:, 0], Pm[:, 3] - Pm[:, 1]) < 0.0
+    poly, k = _clip(S, np.where(facing[:, None, None], Pm[:, ::-1], 0.0))
+    k = np.where(facing, k, 0)
+    i = np.arange(poly.shape[1])
+    valid = i < k[:, None]
+    centre = (poly * valid[..., None]).sum(axis=1) / np.maximum(k, 1)[:, None]
+    nxt = np.where(i + 1 < k[:, None], i + 1, 0)
+    u = poly - centre[:, None]
+    v = np.take_along_axis(poly, nxt[..., None], axis=1) - centre[:, None]
+    tri = np.where(valid, 0.5 * _cross2(u, v), 0.0)                 # (p, c) fan triangles
+    keep = valid & (tri.sum(axis=1) > _SLIVER * area_s)[:, None]
+    pair, corner = np.nonzero(keep)
+    u, v = u[pair, corner], v[pair, corner]
+    p = (centre[pair][:, None] + lam[None, :, :1] * u[:, None]
+         + lam[None, :, 1:] * v[:, None])                          # (t, g, 2)
+    w = tri[pair, corner][:, None] * wq[None]
+    xi_s = _inverse_bilinear(S[pair], p)
+    xi_m = _inverse_bilinear(Pm[pair], p)
+    Ns, dNs = shape(xi_s)
+    Nm, _ = shape(xi_m)
+    dx = np.einsum("tgad,tai->tgdi", dNs, Xs[pair])
+    c = np.cross(dx[..., 0, :], dx[..., 1, :])
+    w = w * np.linalg.norm(c, axis=-1) / np.einsum("tgi,ti->tg", c, R[pair, 2])
+    phi = np.einsum("tgk,tjk->tgj", Ns, As[pair])
+    return (pair, np.einsum("tgj,tgl,tg->tjl", phi, Nm, w),
+            np.einsum("tgj,tg->tj", Ns, w))
+
+
+def _check_slave(Xs):
+    """The slave faces' projections on their planes must be convex and counter-clockwise
+    (the clipping's and the inverse maps' premise): a positive turn at every corner."""
+    x0, R = _planes(Xs)
+    S = np.einsum("fai,fki->fak", Xs - x0[:, None], R[:, :2])
+    turn = _cross2(np.roll(S, -1, axis=1) - S, np.roll(S, 1, axis=1) - S)
+    if np.any(turn <= 0.0):
+        bad = int(np.argmin(turn.min(axis=1)))
+        raise ValueError(f"slave face {bad} is not a convex quadrilateral counter-clockwise "
+                         f"about its normal (corner turn {turn.min():.3e})")
+
+
+def mortar_matrices(xs, fs, xm, fm, pairs=None, points=3, inflate=0.5):
+    """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
+    (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
+    about their body's outward normal (module docstring).
+
+    pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
+    with `inflate`. points: the triangle rule's points per direction (triangle_rule)."""
+    xs, xm = np.asarray(xs, dtype=float), np.asarray(xm, dtype=float)
+    fs, fm = np.asarray(fs, dtype=np.int64), np.asarray(fm, dtype=np.int64)
+    ns = xs.shape[0]
+    if pairs is None:
+        pairs = candidate_pairs(xs, fs, xm, fm, inflate)
+    _check_slave(xs[fs])
+    A, De = dual_coefficients(xs[fs])
+    lam, wq = triangle_rule(points)
+    rows, cols, vals = [], [], []
+    overlap = np.zeros(ns)
+    for start in range(0, pairs.shape[0], CHUNK):
+        s, m = pairs[start:start + CHUNK].T
+        pair, Mt, Nt = _segments(xs[fs[s]], A[s], xm[fm[m]], lam, wq)
+        rows.append(np.broadcast_to(fs[s[pair]][:, :, None], Mt.shape).ravel())
+        cols.append(np.broadcast_to(fm[m[pair]][:, None, :], Mt.shape).ravel())
+        vals.append(Mt.ravel())
+        overlap += np.bincount(fs[s[pair]].ravel(), Nt.ravel(), minlength=ns)
+    rows, cols, vals = (np.concatenate(a) if a else np.zeros(0, dtype=t)
+                        for a, t in ((rows, np.int64), (cols, np.int64), (vals, float)))
+    code, inverse = np.unique(rows * xm.shape[0] + cols, return_inverse=True)
+    values = np.bincount(inverse.ravel(), vals, minlength=code.size)
+    return Mortar(D=np.bincount(fs.ravel(), De.ravel(), minlength=ns),
+                  rows=code // xm.shape[0], cols=code % xm.shape[0], values=values,
+                  normals=nodal_normals(xs, fs), overlap=overlap, covered=overlap > 0.0)
