@@ -54,7 +54,8 @@ _G = np.sqrt(0.6)
 #: 3x3 Gauss points and weights on the reference square (the slave faces' D_e, M_e)
 _GP9 = np.array([[a, b] for a in (-_G, 0.0, _G) for b in (-_G, 0.0, _G)])
 _W9 = np.prod(np.where(_GP9 == 0.0, 8.0 / 9.0, 5.0 / 9.0), axis=1)
-#: face pairs handled at once (bounds the temporaries: ~50 kB per pair with n = 3)
+#: face pairs handled at once (bounds the temporaries: per pair up to 8 clip triangles
+#: of n x n points each)
 CHUNK = 2048
 #: Newton iterations at most for the inverse bilinear maps, and the step that ends them
 _NEWTON, _NEWTON_TOL = 30, 1e-14
@@ -128,7 +129,7 @@ def _cells(lo, hi, origin, size, dims):
     return key[ok], box[ok]
 
 
-def candidate_pairs(xs, fs, xm, fm, inflate=0.5):
+def candidate_pairs(xs, fs, xm, fm, inflate=0.25):
     """(slave face, master face) pairs (p, 2) whose boxes (face_boxes) overlap, sorted,
     found through a uniform grid of cells as large as the largest box: each box is put in
     the <= 8 cells it overlaps, pairs meet in a shared cell, then are checked and deduplicated
@@ -198,10 +199,11 @@ def _inverse_bilinear(Q, p):
     """Reference points xi (t, g, 2) of points p (t, g, 2) under the 2D bilinear maps of
     the quadrilaterals Q (t, 4, 2): Newton from the centre."""
     xi = np.zeros_like(p)
+    QT = Q.transpose(0, 2, 1)[:, None]
     for _ in range(_NEWTON):
         N, dN = shape(xi)
-        r = np.einsum("tga,tai->tgi", N, Q) - p
-        J = np.einsum("tgad,tai->tgid", dN, Q)                      # dx_i / dxi_d
+        r = np.matmul(N, Q) - p
+        J = np.matmul(QT, dN)                                       # dx_i / dxi_d
         det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
         step = np.stack([J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1],
                          J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]], axis=-1)
@@ -252,12 +254,12 @@ def _segments(Xs, As, Xm, lam, wq):
     xi_m = _inverse_bilinear(Pm[pair], p)
     Ns, dNs = shape(xi_s)
     Nm, _ = shape(xi_m)
-    dx = np.einsum("tgad,tai->tgdi", dNs, Xs[pair])
-    c = np.cross(dx[..., 0, :], dx[..., 1, :])
-    w = w * np.linalg.norm(c, axis=-1) / np.einsum("tgi,ti->tg", c, R[pair, 2])
-    phi = np.einsum("tgk,tjk->tgj", Ns, As[pair])
-    return (pair, np.einsum("tgj,tgl,tg->tjl", phi, Nm, w),
-            np.einsum("tgj,tg->tj", Ns, w))
+    dx = np.matmul(Xs[pair].transpose(0, 2, 1)[:, None], dNs)      # (t, g, 3, 2)
+    c = np.cross(dx[..., 0], dx[..., 1])
+    w = w * np.linalg.norm(c, axis=-1) / (c * R[pair, None, 2]).sum(axis=-1)
+    phi = np.matmul(Ns, As[pair].transpose(0, 2, 1))
+    return (pair, np.matmul(phi.transpose(0, 2, 1), Nm * w[..., None]),
+            (Ns * w[..., None]).sum(axis=1))
 
 
 def _check_slave(Xs):
@@ -272,7 +274,7 @@ def _check_slave(Xs):
                          f"about its normal (corner turn {turn.min():.3e})")
 
 
-def mortar_matrices(xs, fs, xm, fm, pairs=None, points=3, inflate=0.5):
+def mortar_matrices(xs, fs, xm, fm, pairs=None, points=3, inflate=0.25):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
     about their body's outward normal (module docstring).
