@@ -29,7 +29,7 @@ uniform bucket grid, no all-pairs matrix)
      face's projected area are dropped;
   4. the clip polygon split into triangles fanned from its vertex centroid, each
      integrated by a collapsed (Duffy) Gauss-Legendre rule of n x n points, exact for
-     polynomials of degree 2 n - 2 in the plane (default n = 3: degree 4);
+     polynomials of degree 2 n - 2 in the plane (default n = 4: degree 6, 16 points);
   5. each point p mapped to the slave's and the master's reference coordinates by
      inverting the 2D bilinear maps of the projected quadrilaterals (Newton), its weight
      the triangle's area times |c| / (c . n0), c = dx/dxi x dx/deta of the slave face
@@ -38,8 +38,10 @@ uniform bucket grid, no all-pairs matrix)
      face sum_l M[j, l] = D_j again where the master covers it; the factor is 1 on flat
      faces).
 On flat faces whose projected maps are affine (parallelograms) Phi_j and N^m_l are
-quadratic in p and the rule with n = 3 is exact; on distorted quadrilaterals the inverse
-bilinear map is not polynomial and the error falls with n (tests/fem/test_mortar.py).
+quadratic in p and the rule is exact from n = 3 on; on distorted quadrilaterals the
+inverse bilinear map is not polynomial and the error falls with n: sum_l M[j, l] - D_j
+is 1e-4, 1e-5, 1e-6, 2e-12, 2e-15 of max D for n = 3, 4, 5, 12, 16 with corners moved
+by up to 0.3 of a cell (tests/fem/test_mortar.py).
 
 Not here: the boundary modification of the dual basis at the edges of the slave surface
 (Wohlmuth; Popp et al. 2010), crosspoints, the gap and the linearisation.
@@ -274,7 +276,7 @@ def _check_slave(Xs):
                          f"about its normal (corner turn {turn.min():.3e})")
 
 
-def mortar_matrices(xs, fs, xm, fm, pairs=None, points=3, inflate=0.25):
+def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
     about their body's outward normal (module docstring).

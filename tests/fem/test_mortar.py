@@ -1,0 +1,264 @@
+"""The dual mortar coupling of two q1 contact surfaces (contact/fem/mortar.py).
+
+Expected values are closed forms or computed here independently (tensor Gauss rules of
+high order on the reference square, exact trapezoid sums of piecewise linear functions,
+brute-force box checks); none comes from the module under test:
+* matching flat meshes: M is D on the coincident master node, D the lumped areas;
+* non-matching flat meshes (aligned boundaries, or shifted so no node meets a node): the
+  master basis' partition of unity (sum_l M[j, l] = D_j), the area, and the reproduction
+  of linear functions (sum_l M[j, l] f(x_l) = D_j f(x_j), since int Phi_j N_k = delta_jk
+  D_j); with a gap, turned in space, and a master facing away (no coupling);
+* a partial overlap: the covered area and int N_j over it per node, closed form;
+* curved: the cylinder r = 1 meshed twice (non-matching): row sums, radial normals, the
+  area's second-order convergence; warped faces (a saddle): row sums to D's accuracy;
+* distorted flat meshes: the same identities to the triangle rule's accuracy, which
+  falls to round-off as the rule grows (the convergence that sets the tolerances);
+* the dual basis' biorthogonality on a distorted face, by a 12 x 12 Gauss rule;
+* the bucket-grid search against all pairs checked by brute force.
+"""
+import numpy as np
+import pytest
+
+from contact.fem.mortar import candidate_pairs, dual_coefficients, mortar_matrices
+
+CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+def grid(nx, ny, lower=(0.0, 0.0), upper=(1.0, 1.0), up=True, distort=0.0, seed=0,
+         z=lambda x, y: 0.0 * x):
+    """Nodes (n, 3) and faces (f, 4) of an nx x ny grid of [lower, upper] on the surface
+    z(x, y), faces counter-clockwise about +z (up) or -z; interior nodes moved in-plane by
+    up to `distort` of a cell at random."""
+    x, y = np.meshgrid(np.linspace(lower[0], upper[0], nx + 1),
+                       np.linspace(lower[1], upper[1], ny + 1), indexing="ij")
+    inner = (np.arange(nx + 1)[:, None] % nx > 0) & (np.arange(ny + 1)[None, :] % ny > 0)
+    rng = np.random.default_rng(seed)
+    h = (np.subtract(upper, lower) / (nx, ny))
+    x[inner] += distort * h[0] * rng.uniform(-1.0, 1.0, inner.sum())
+    y[inner] += distort * h[1] * rng.uniform(-1.0, 1.0, inner.sum())
+    X = np.stack([x.ravel(), y.ravel(), z(x, y).ravel()], axis=1)
+    i = np.arange(X.shape[0]).reshape(nx + 1, ny + 1)
+    f = np.stack([i[:-1, :-1], i[1:, :-1], i[1:, 1:], i[:-1, 1:]], axis=-1).reshape(-1, 4)
+    return X, (f if up else f[:, ::-1])
+
+
+def dense(mortar, nm):
+    M = np.zeros((mortar.D.size, nm))
+    np.add.at(M, (mortar.rows, mortar.cols), mortar.values)
+    return M
+
+
+LINEAR = [lambda x: x[:, 0], lambda x: x[:, 1], lambda x: 1.0 + 2.0 * x[:, 0] - 3.0 * x[:, 1]]
+
+
+def identities(xs, fs, xm, fm, **kw):
+    """The mortar coupling, its dense M and the largest relative errors of the row sums
+    and of the linear reproductions (module docstring)."""
+    mo = mortar_matrices(xs, fs, xm, fm, **kw)
+    M = dense(mo, xm.shape[0])
+    scale = mo.D.max()
+    rows = np.abs(M.sum(axis=1) - mo.D).max() / scale
+    lin = max(np.abs(M @ f(xm) - mo.D * f(xs)).max() / scale for f in LINEAR)
+    return mo, M, rows, lin
+
+
+def test_matching_flat_meshes():
+    h = 0.25
+    xs, fs = grid(4, 4, up=False)                # slave on z = 0 facing down
+    xm, fm = grid(4, 4, up=True)                 # master: the same nodes facing up
+    mo = mortar_matrices(xs, fs, xm, fm)
+    i, j = np.meshgrid(np.arange(5), np.arange(5), indexing="ij")
+    edges = (i % 4 == 0).astype(int) + (j % 4 == 0)       # 0 interior, 1 edge, 2 corner
+    lumped = (h * h / np.array([1.0, 2.0, 4.0]))[edges].ravel()
+    assert np.abs(mo.D - lumped).max() < 1e-15
+    assert np.abs(dense(mo, xm.shape[0]) - np.diag(lumped)).max() < 1e-15
+    assert np.abs(mo.overlap - lumped).max() < 1e-15 and mo.covered.all()
+    assert np.abs(mo.normals - [0.0, 0.0, -1.0]).max() < 1e-15
+
+
+MASTERS = {"aligned": dict(lower=(0.0, 0.0), upper=(1.0, 1.0)),
+           "shifted": dict(lower=(-0.13, -0.09), upper=(1.13, 1.17))}
+
+
+@pytest.mark.parametrize("master", MASTERS)
+def test_non_matching_flat_meshes(master):
+    xs, fs = grid(5, 5, up=False)
+    xm, fm = grid(7, 7, up=True, **MASTERS[master])
+    if master == "shifted":                      # no master node on a slave node or edge
+        assert np.abs(np.subtract.outer(xm[:, :2], np.linspace(0, 1, 6))).min() > 0.005
+    mo, M, rows, lin = identities(xs, fs, xm, fm)
+    assert abs(mo.D.sum() - 1.0) < 1e-14
+    assert rows < 1e-14 and lin < 1e-14          # measured <= 7e-17
+    assert np.abs(mo.overlap - mo.D).max() < 1e-15 and mo.covered.all()
+
+
+def turned(x, angle=0.7, axis=(1.0, 2.0, 2.0), shift=(0.3, -0.2, 0.5)):
+    """x rotated about `axis` by `angle` (Rodrigues) and shifted."""
+    k = np.asarray(axis) / np.linalg.norm(axis)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    R = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+    return x @ R.T + shift
+
+
+@pytest.mark.parametrize("turn", [False, True])
+def test_gap_along_the_normal_changes_nothing(turn):
+    xs, fs = grid(5, 5, up=False)
+    xm, fm = grid(7, 7, up=True, **MASTERS["shifted"])
+    touching = dense(mortar_matrices(xs, fs, xm, fm), xm.shape[0])
+    gap = xm - [0.0, 0.0, 0.01]                 # the master 0.01 below the slave
+    if turn:                                    # and both surfaces turned in space
+        xs, gap = turned(xs), turned(gap)
+    mo = mortar_matrices(xs, fs, gap, fm)
+    assert np.abs(dense(mo, xm.shape[0]) - touching).max() < 1e-15   # measured 3e-17
+    assert abs(mo.D.sum() - 1.0) < 1e-14
+
+
+def test_master_facing_away_is_not_coupled():
+    xs, fs = grid(5, 5, up=False)
+    xm, fm = grid(7, 7, up=False, **MASTERS["shifted"])    # faces down, as the slave's
+    mo = mortar_matrices(xs, fs, xm, fm)
+    assert mo.values.size == 0 and not mo.covered.any() and not mo.overlap.any()
+
+
+def hat_integral(nodes, upto):
+    """int_0^upto of the 1D hat functions of the nodes (sorted): trapezoid sums over the
+    kinks (exact for piecewise linear functions)."""
+    out = []
+    for j, xj in enumerate(nodes):
+        t = np.unique(np.clip(np.r_[nodes[max(j - 1, 0):j + 2], upto], nodes[0], upto))
+        v = np.interp(t, nodes, np.eye(nodes.size)[j])
+        out.append(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)))
+    return np.array(out)
+
+
+def test_partial_overlap():
+    xs, fs = grid(5, 5, up=False)
+    xm, fm = grid(7, 7, (-0.2, -0.2), (0.5, 1.2), up=True)   # covers x < 0.5 of the slave
+    mo = mortar_matrices(xs, fs, xm, fm)
+    t = np.linspace(0.0, 1.0, 6)
+    x, y = xs[:, 0], xs[:, 1]
+    assert abs(mo.values.sum() - 0.5) < 1e-14           # sum_j Phi_j = 1: the area covered
+    expect = np.outer(hat_integral(t, 0.5), hat_integral(t, 1.0)).ravel()
+    assert np.abs(mo.overlap - expect).max() < 1e-15
+    assert np.array_equal(mo.covered, x < 0.7)           # nodes of faces cut by x = 0.5
+    assert np.all(x[mo.rows] < 0.7)                      # none outside: no M entries
+    M = dense(mo, xm.shape[0])
+    full = x < 0.3                                       # all their faces covered
+    assert np.abs(M[full].sum(axis=1) - mo.D[full]).max() < 1e-15
+    assert np.abs(mo.D - np.outer(hat_integral(t, 1.0), hat_integral(t, 1.0)).ravel()
+                  ).max() < 1e-15
+    assert np.all(np.isin(y[mo.rows], t))
+
+
+def cylinder(nt, nz, outward):
+    """The quarter cylinder r = 1, 0 <= theta <= pi/2, 0 <= z <= 1: nodes on it, faces
+    counter-clockwise about +r (outward) or -r."""
+    t, z = np.meshgrid(np.linspace(0.0, np.pi / 2, nt + 1), np.linspace(0.0, 1.0, nz + 1),
+                       indexing="ij")
+    X = np.stack([np.cos(t).ravel(), np.sin(t).ravel(), z.ravel()], axis=1)
+    i = np.arange(X.shape[0]).reshape(nt + 1, nz + 1)
+    f = np.stack([i[:-1, :-1], i[1:, :-1], i[1:, 1:], i[:-1, 1:]], axis=-1).reshape(-1, 4)
+    return X, (f if outward else f[:, ::-1])
+
+
+def test_curved_cylinder():
+    """The slave is the inside body's face (normal +r), the master the outside body's (its
+    outward normal -r faces the slave). The faces are flat rectangles (chords), so the row
+    sums are exact; the facets' area converges to pi/2 at second order in the angle."""
+    errors = []
+    for k in (1, 2, 4):
+        xs, fs = cylinder(6 * k, 4 * k, outward=True)
+        xm, fm = cylinder(9 * k, 5 * k, outward=False)
+        mo = mortar_matrices(xs, fs, xm, fm)
+        M = dense(mo, xm.shape[0])
+        assert np.abs(M.sum(axis=1) - mo.D).max() < 1e-14 * mo.D.max()  # measured 5e-15
+        assert mo.covered.all()
+        inner = np.abs(np.arctan2(xs[:, 1], xs[:, 0]) - np.pi / 4) < np.pi / 4 - 1e-9
+        radial = xs * [1.0, 1.0, 0.0]
+        assert np.abs(mo.normals[inner] - radial[inner]).max() < 1e-14
+        errors.append(np.pi / 2 - mo.D.sum())
+    order = np.log2(np.array(errors[:-1]) / errors[1:])
+    assert np.all((order > 1.95) & (order < 2.05)), order    # measured 1.9991, 1.9998
+
+
+def test_curved_warped_saddle():
+    """z = x y / 2: every face warped. M is integrated over the slave surface (the plane's
+    area element scaled), so the row sums hold to the accuracy of D's 3x3 Gauss rule on a
+    warped face (measured 5e-10; without the scaling the error would be the warping's)."""
+    saddle = dict(z=lambda x, y: 0.5 * x * y)
+    xs, fs = grid(5, 5, up=False, **saddle)
+    xm, fm = grid(7, 7, (-0.1, -0.1), (1.1, 1.1), up=True, **saddle)
+    _, _, rows, _ = identities(xs, fs, xm, fm)
+    assert rows < 1e-8
+
+
+def test_distorted_flat_meshes():
+    """Distorted quadrilaterals: the inverse bilinear maps are not polynomial, so the
+    triangle rule is not exact; its error (row sums and linear reproduction, relative to
+    max D) falls geometrically with the rule's points per direction n: measured 2e-3,
+    1e-4, 1e-5 (n = 4, the default), 1e-6, 2e-7, 2e-8, ..., 2e-12 (n = 12), 4e-14 (14),
+    2e-15 (16) for n = 2, 3, ...: the tolerances."""
+    xs, fs = grid(5, 5, up=False, distort=0.3, seed=1)
+    xm, fm = grid(7, 7, (-0.1, -0.1), (1.1, 1.1), up=True, distort=0.3, seed=2)
+    mo, M4, rows4, lin4 = identities(xs, fs, xm, fm)
+    assert abs(mo.D.sum() - 1.0) < 1e-14
+    assert 1e-6 < max(rows4, lin4) < 3e-5                  # not exact, but close
+    _, M16, rows16, lin16 = identities(xs, fs, xm, fm, points=16)
+    assert rows16 < 1e-14 and lin16 < 1e-14
+    assert np.abs(M4 - M16).max() < 3e-5 * mo.D.max()
+
+
+def gauss_square(n):
+    """n x n Gauss points (g, 2) and weights (g,) on [-1, 1]^2."""
+    s, w = np.polynomial.legendre.leggauss(n)
+    return (np.stack(np.meshgrid(s, s, indexing="ij"), axis=-1).reshape(-1, 2),
+            np.outer(w, w).ravel())
+
+
+@pytest.mark.parametrize("warp", [0.0, 0.3])
+def test_dual_basis_is_biorthogonal(warp):
+    """int_e Phi_j N_k = delta_jk int_e N_j by a 12 x 12 Gauss rule (N, |J| written here)
+    on a distorted face, flat (exact: 3x3 Gauss integrates N_j N_k |J| exactly there) or
+    warped (then to the 3x3 rule's accuracy: measured 2e-5 of max int N_j)."""
+    X = np.array([[0.1, -0.2, 0.0], [1.3, 0.1, 0.0], [1.0, 0.9, warp], [-0.2, 1.2, 0.0]])
+    A, De = dual_coefficients(X[None])
+    p, w = gauss_square(12)
+    N = np.prod(1.0 + p[:, None, :] * CORNERS, axis=2) / 4.0                 # (g, 4)
+    dN = np.stack([CORNERS[:, 0] * (1.0 + p[:, None, 1] * CORNERS[:, 1]),
+                   CORNERS[:, 1] * (1.0 + p[:, None, 0] * CORNERS[:, 0])], axis=2) / 4.0
+    dx = np.einsum("gad,ai->gdi", dN, X)
+    J = np.linalg.norm(np.cross(dx[:, 0], dx[:, 1]), axis=1) * w
+    lumped = N.T @ J
+    phi = N @ A[0].T
+    tol = 1e-14 if warp == 0.0 else 1e-4
+    assert np.abs(De[0] - lumped).max() < tol * lumped.max()
+    assert np.abs(phi.T @ (N * J[:, None]) - np.diag(lumped)).max() < tol * lumped.max()
+    assert np.abs(phi.sum(axis=1) - 1.0).max() < 1e-14
+
+
+def brute_pairs(xs, fs, xm, fm, inflate):
+    def boxes(x, f):
+        lo, hi = x[f].min(axis=1), x[f].max(axis=1)
+        pad = inflate * np.max(hi - lo, axis=1)[:, None]
+        return lo - pad, hi + pad
+    (a, b), (c, d) = boxes(xs, fs), boxes(xm, fm)
+    hit = np.all((a[:, None] <= d[None]) & (c[None] <= b[:, None]), axis=2)
+    return np.argwhere(hit)
+
+
+def test_search_equals_all_pairs():
+    """A graded, distorted, tilted master against a distorted slave: the bucket grid finds
+    exactly the pairs whose boxes overlap, and the coupling equals that of all pairs."""
+    xs, fs = grid(6, 5, (0.05, -0.1), (0.9, 0.8), up=False, distort=0.3, seed=4,
+                  z=lambda x, y: 0.1 * x * x)
+    xm, fm = grid(8, 9, (-0.2, -0.3), (1.1, 1.0), up=True, distort=0.3, seed=5,
+                  z=lambda x, y: 0.1 * x * x - 0.02 + 0.01 * y)
+    xm[:, 0] = -0.2 + 1.3 * ((xm[:, 0] + 0.2) / 1.3) ** 1.5    # graded in x
+    for inflate in (0.0, 0.25, 1.0):
+        found = candidate_pairs(xs, fs, xm, fm, inflate)
+        assert np.array_equal(found, brute_pairs(xs, fs, xm, fm, inflate))
+    every = np.argwhere(np.ones((fs.shape[0], fm.shape[0]), dtype=bool))
+    fast, slow = mortar_matrices(xs, fs, xm, fm), mortar_matrices(xs, fs, xm, fm, pairs=every)
+    assert np.array_equal(fast.rows, slow.rows) and np.array_equal(fast.cols, slow.cols)
+    assert np.abs(fast.values - slow.values).max() < 1e-16
+    assert fast.covered.all()
