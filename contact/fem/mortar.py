@@ -22,11 +22,11 @@ uniform bucket grid, no all-pairs matrix)
      n0 ~ (x2 - x0) x (x3 - x1), in-plane axes t1 (the projected d x / d xi), t2 = n0 x t1;
   2. the 4 slave and the 4 master vertices projected onto it along n0 (2D coordinates);
      edges are straight, so the projected faces are exactly these quadrilaterals;
-  3. the master quadrilateral (clockwise there when it faces the slave: pairs where it
-     is counter-clockwise face away and are dropped; the facing ones reversed) clipped
-     by the convex slave quadrilateral (Sutherland-Hodgman, all pairs at once, the
-     polygons as padded arrays with a vertex count); polygons under 1e-12 of the slave
-     face's projected area are dropped;
+  3. the master quadrilateral, reversed (it is clockwise there when it faces the slave),
+     clipped by the convex slave quadrilateral (Sutherland-Hodgman, all pairs at once,
+     the polygons as padded arrays with a vertex count); polygons with less (signed)
+     area than 1e-12 of the slave face's are dropped: so are those of a master face
+     facing away (clockwise after the reversal: negative area);
   4. the clip polygon split into triangles fanned from its vertex centroid, each
      integrated by a collapsed (Duffy) Gauss-Legendre rule of n x n points, exact for
      polynomials of degree 2 n - 2 in the plane (default n = 4: degree 6, 16 points);
@@ -236,9 +236,7 @@ def _segments(Xs, As, Xm, lam, wq):
     S = np.einsum("pai,pki->pak", Xs - x0[:, None], R[:, :2])       # (p, 4, 2)
     Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])
     area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
-    facing = 0.5 * _cross2(Pm[:, 2] - Pm[:, 0], Pm[:, 3] - Pm[:, 1]) < 0.0
-    poly, k = _clip(S, np.where(facing[:, None, None], Pm[:, ::-1], 0.0))
-    k = np.where(facing, k, 0)
+    poly, k = _clip(S, Pm[:, ::-1])
     i = np.arange(poly.shape[1])
     valid = i < k[:, None]
     centre = (poly * valid[..., None]).sum(axis=1) / np.maximum(k, 1)[:, None]
