@@ -24,9 +24,10 @@ uniform bucket grid, no all-pairs matrix)
      edges are straight, so the projected faces are exactly these quadrilaterals;
   3. the master quadrilateral, reversed (it is clockwise there when it faces the slave),
      clipped by the convex slave quadrilateral (Sutherland-Hodgman, all pairs at once,
-     the polygons as padded arrays with a vertex count); polygons with less (signed)
-     area than 1e-12 of the slave face's are dropped: so are those of a master face
-     facing away (clockwise after the reversal: negative area);
+     the polygons as padded arrays with a vertex count); pairs whose reversed master is
+     not convex and counter-clockwise (facing away, or folded seen edge-on: no inverse
+     map) are dropped, and so are clip polygons of less area than 1e-12 of the slave
+     face's;
   4. the clip polygon split into triangles fanned from its vertex centroid, each
      integrated by a collapsed (Duffy) Gauss-Legendre rule of n x n points, exact for
      polynomials of degree 2 n - 2 in the plane (default n = 4: degree 6, 16 points);
@@ -160,15 +161,29 @@ def _cross2(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
+def _turns(P):
+    """Turns at the corners of quadrilaterals P (p, 4, 2): all > 0 iff convex and
+    counter-clockwise."""
+    return _cross2(np.roll(P, -1, axis=1) - P, np.roll(P, 1, axis=1) - P)
+
+
 def _planes(X):
-    """The auxiliary planes of faces X (f, 4, 3): centre x0 (f, 3) and the rows
-    (t1, t2, n0) (f, 3, 3)."""
+    """The auxiliary planes of slave faces X (f, 4, 3): centre x0 (f, 3), the rows
+    (t1, t2, n0) (f, 3, 3) and the projected faces (f, 4, 2), which must be convex and
+    counter-clockwise (the clipping's and the inverse maps' premise)."""
     n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     t = X[:, 1] - X[:, 0] + X[:, 2] - X[:, 3]                        # 2 dx/dxi at the centre
     t -= (t * n).sum(axis=1, keepdims=True) * n
     t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return X.mean(axis=1), np.stack([t, np.cross(n, t), n], axis=1)
+    x0, R = X.mean(axis=1), np.stack([t, np.cross(n, t), n], axis=1)
+    S = np.einsum("fai,fki->fak", X - x0[:, None], R[:, :2])
+    turn = _turns(S)
+    if np.any(turn <= 0.0):
+        bad = int(np.argmin(turn.min(axis=1)))
+        raise ValueError(f"slave face {bad} is not a convex quadrilateral counter-clockwise "
+                         f"about its normal (corner turn {turn.min():.3e})")
+    return x0, R, S
 
 
 def _clip(S, P):
@@ -228,15 +243,15 @@ def triangle_rule(n):
     return lam, (2.0 * wa * wb * (1.0 - a)).ravel()
 
 
-def _segments(Xs, As, Xm, lam, wq):
+def _segments(Xs, As, planes, Xm, lam, wq):
     """Mortar integrals of the face pairs (slave Xs (p, 4, 3) with dual coefficients As
-    (p, 4, 4), master Xm (p, 4, 3)): per clip triangle, its pair (t,), the local M
-    (t, 4, 4) and int N_j (t, 4) over it (module docstring, steps 1-5)."""
-    x0, R = _planes(Xs)
-    S = np.einsum("pai,pki->pak", Xs - x0[:, None], R[:, :2])       # (p, 4, 2)
-    Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])
+    (p, 4, 4) and planes (_planes), master Xm (p, 4, 3)): per clip triangle, its pair (t,),
+    the local M (t, 4, 4) and int N_j (t, 4) over it (module docstring, steps 1-5)."""
+    x0, R, S = planes
+    Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])      # (p, 4, 2)
     area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
     poly, k = _clip(S, Pm[:, ::-1])
+    k = np.where(np.all(_turns(Pm[:, ::-1]) > 0.0, axis=1), k, 0)  # facing, not folded
     i = np.arange(poly.shape[1])
     valid = i < k[:, None]
     centre = (poly * valid[..., None]).sum(axis=1) / np.maximum(k, 1)[:, None]
@@ -262,18 +277,6 @@ def _segments(Xs, As, Xm, lam, wq):
             (Ns * w[..., None]).sum(axis=1))
 
 
-def _check_slave(Xs):
-    """The slave faces' projections on their planes must be convex and counter-clockwise
-    (the clipping's and the inverse maps' premise): a positive turn at every corner."""
-    x0, R = _planes(Xs)
-    S = np.einsum("fai,fki->fak", Xs - x0[:, None], R[:, :2])
-    turn = _cross2(np.roll(S, -1, axis=1) - S, np.roll(S, 1, axis=1) - S)
-    if np.any(turn <= 0.0):
-        bad = int(np.argmin(turn.min(axis=1)))
-        raise ValueError(f"slave face {bad} is not a convex quadrilateral counter-clockwise "
-                         f"about its normal (corner turn {turn.min():.3e})")
-
-
 def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
@@ -286,14 +289,15 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
     ns = xs.shape[0]
     if pairs is None:
         pairs = candidate_pairs(xs, fs, xm, fm, inflate)
-    _check_slave(xs[fs])
+    planes = _planes(xs[fs])
     A, De = dual_coefficients(xs[fs])
     lam, wq = triangle_rule(points)
     rows, cols, vals = [], [], []
     overlap = np.zeros(ns)
     for start in range(0, pairs.shape[0], CHUNK):
         s, m = pairs[start:start + CHUNK].T
-        pair, Mt, Nt = _segments(xs[fs[s]], A[s], xm[fm[m]], lam, wq)
+        pair, Mt, Nt = _segments(xs[fs[s]], A[s], [a[s] for a in planes], xm[fm[m]],
+                                 lam, wq)
         rows.append(np.broadcast_to(fs[s[pair]][:, :, None], Mt.shape).ravel())
         cols.append(np.broadcast_to(fm[m[pair]][:, None, :], Mt.shape).ravel())
         vals.append(Mt.ravel())

@@ -128,6 +128,22 @@ def test_non_convex_slave_face_is_refused():
         mortar_matrices(xs, fs, xm, fm)
 
 
+def test_master_face_folded_in_projection_is_dropped():
+    """One slave face [0, 1]^2; the master a flat face over x < 0.5 and a twisted one over
+    x > 0.5 whose projection is a bow-tie (no inverse map: dropped). The flat one alone:
+    row sums int_{x < 0.5} Phi_j = (1 - 3/8) / 2 at x = 0 and (3/8 - 1/2) / 2 at x = 1 (the
+    1D dual functions 2 - 3 x and 3 x - 1)."""
+    xs, fs = grid(1, 1, up=False)
+    xm = np.array([[0.0, 0.0, -0.01], [0.5, 0.0, -0.01], [0.5, 1.0, -0.01], [0.0, 1.0, -0.01],
+                   [1.0, 0.0, -0.01], [0.5, 1.0, -0.3], [0.6, 1.0, -0.3]])
+    fm = np.array([[0, 1, 2, 3], [1, 4, 5, 6]])       # the second: edges 4-5 and 6-1 cross
+    mo = mortar_matrices(xs, fs, xm, fm)
+    assert np.array_equal(np.unique(mo.cols), [0, 1, 2, 3])
+    expect = np.where(xs[:, 0] == 0.0, 0.3125, -0.0625)
+    assert np.abs(dense(mo, xm.shape[0]).sum(axis=1) - expect).max() < 1e-15
+    assert abs(mo.values.sum() - 0.5) < 1e-15
+
+
 def hat_integral(nodes, upto):
     """int_0^upto of the 1D hat functions of the nodes (sorted): trapezoid sums over the
     kinks (exact for piecewise linear functions)."""
@@ -161,6 +177,21 @@ def test_partial_overlap():
     for xc, part in ((0.4, 0.225), (0.6, -0.025)):
         at = np.abs(x - xc) < 1e-12
         assert np.abs(M[at].sum(axis=1) - part * Dy).max() < 1e-15
+
+
+def test_partial_overlap_along_a_mesh_line():
+    """The master's edge on the slave's line x = 0.4: the faces beyond only touch it (clip
+    polygons of no area: no entries), and every face is covered whole or not at all, so
+    the row sums are the covered int N_j (biorthogonality on each covered face)."""
+    xs, fs = grid(5, 5, up=False)
+    xm, fm = grid(2, 7, (-0.2, -0.2), (0.4, 1.2), up=True)
+    mo = mortar_matrices(xs, fs, xm, fm)
+    t = np.linspace(0.0, 1.0, 6)
+    expect = np.outer(hat_integral(t, 0.4), hat_integral(t, 1.0)).ravel()
+    assert np.abs(mo.overlap - expect).max() < 1e-15
+    assert np.array_equal(mo.covered, xs[:, 0] < 0.5) and np.all(xs[mo.rows, 0] < 0.5)
+    assert np.abs(dense(mo, xm.shape[0]).sum(axis=1) - expect).max() < 1e-15
+    assert abs(mo.values.sum() - 0.4) < 1e-14
 
 
 def cylinder(nt, nz, outward):
