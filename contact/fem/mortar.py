@@ -53,6 +53,8 @@ import numpy as np
 
 #: the reference square's corners, counter-clockwise (contact/fem/element.py's face order)
 _QUAD = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+#: the bilinear map's monomials 1, xi, eta, xi eta at the corners (rows: the monomial)
+_MONOMIALS = np.stack([np.ones(4), _QUAD[:, 0], _QUAD[:, 1], _QUAD[:, 0] * _QUAD[:, 1]])
 _G = np.sqrt(0.6)
 #: 3x3 Gauss points and weights on the reference square (the slave faces' D_e, M_e)
 _GP9 = np.array([[a, b] for a in (-_G, 0.0, _G) for b in (-_G, 0.0, _G)])
@@ -214,21 +216,23 @@ def _clip(S, P):
 
 def _inverse_bilinear(Q, p):
     """Reference points xi (t, g, 2) of points p (t, g, 2) under the 2D bilinear maps of
-    the quadrilaterals Q (t, 4, 2): Newton from the centre."""
-    xi = np.zeros_like(p)
-    QT = Q.transpose(0, 2, 1)[:, None]
+    the quadrilaterals Q (t, 4, 2), x = a + b xi + c eta + d xi eta: Newton from the
+    centre (the components as separate arrays: 3x faster than as a last axis)."""
+    (a0, b0, c0, d0), (a1, b1, c1, d1) = np.einsum("ma,tai->imt", _MONOMIALS / 4.0,
+                                                   Q)[..., None]
+    s, t = np.zeros(p.shape[:2]), np.zeros(p.shape[:2])
     for _ in range(_NEWTON):
-        N, dN = shape(xi)
-        r = np.matmul(N, Q) - p
-        J = np.matmul(QT, dN)                                       # dx_i / dxi_d
-        det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-        step = np.stack([J[..., 1, 1] * r[..., 0] - J[..., 0, 1] * r[..., 1],
-                         J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]], axis=-1)
-        step /= det[..., None]
-        xi -= step
-        if np.abs(step).max(initial=0.0) < _NEWTON_TOL:
+        st = s * t
+        r0 = a0 + b0 * s + c0 * t + d0 * st - p[..., 0]
+        r1 = a1 + b1 * s + c1 * t + d1 * st - p[..., 1]
+        js0, js1, jt0, jt1 = b0 + d0 * t, b1 + d1 * t, c0 + d0 * s, c1 + d1 * s
+        det = js0 * jt1 - js1 * jt0
+        ds, dt = (r0 * jt1 - r1 * jt0) / det, (js0 * r1 - js1 * r0) / det
+        s -= ds
+        t -= dt
+        if max(np.abs(ds).max(initial=0.0), np.abs(dt).max(initial=0.0)) < _NEWTON_TOL:
             break
-    return xi
+    return np.stack([s, t], axis=-1)
 
 
 def triangle_rule(n):
