@@ -36,16 +36,18 @@ uniform bucket grid, no all-pairs matrix)
      the triangle's area times |c| / (c . n0), c = dx/dxi x dx/deta of the slave face
      at that point: the slave surface's area element over the plane's, so that M
      integrates over the slave surface with the same measure as D (on a warped slave
-     face sum_l M[j, l] = D_j again where the master covers it; the factor is 1 on flat
-     faces).
+     face sum_l M[j, l] = D_j again, to the rules' accuracy, where the master covers
+     it; the factor is 1 on flat faces).
 On flat faces whose projected maps are affine (parallelograms) Phi_j and N^m_l are
 quadratic in p and the rule is exact from n = 3 on; on distorted quadrilaterals the
 inverse bilinear map is not polynomial and the error falls with n: sum_l M[j, l] - D_j
 is 1e-4, 1e-5, 1e-6, 2e-12, 2e-15 of max D for n = 3, 4, 5, 12, 16 with corners moved
 by up to 0.3 of a cell (tests/fem/test_mortar.py).
 
-Not here: the boundary modification of the dual basis at the edges of the slave surface
-(Wohlmuth; Popp et al. 2010), crosspoints, the gap and the linearisation.
+On a slave face the master covers only in part, Phi_j is integrated over the covered
+part: its row sums differ from D_j there and may be negative (the dual functions are).
+Not here: the modification of the dual basis at the slave surface's boundary (Wohlmuth
+2011; Popp et al. 2010), crosspoints, the gap and the linearisation.
 """
 from typing import NamedTuple
 
@@ -138,7 +140,8 @@ def candidate_pairs(xs, fs, xm, fm, inflate=0.25):
     """(slave face, master face) pairs (p, 2) whose boxes (face_boxes) overlap, sorted,
     found through a uniform grid of cells as large as the largest box: each box is put in
     the <= 8 cells it overlaps, pairs meet in a shared cell, then are checked and deduplicated
-    (work and memory of the order of the faces and pairs, not of their product)."""
+    (work and memory of the order of the faces and pairs, not of their product, while the
+    faces are of comparable size: one very large face makes the cells large)."""
     if fs.shape[0] == 0 or fm.shape[0] == 0:
         return np.zeros((0, 2), dtype=np.int64)
     slo, shi = face_boxes(xs, fs, inflate)
