@@ -8,7 +8,9 @@ brute-force box checks); none comes from the module under test:
   master basis' partition of unity (sum_l M[j, l] = D_j), the area, and the reproduction
   of linear functions (sum_l M[j, l] f(x_l) = D_j f(x_j), since int Phi_j N_k = delta_jk
   D_j); with a gap, turned in space, and a master facing away (no coupling);
-* a partial overlap: the covered area and int N_j over it per node, closed form;
+* partial overlaps (a master edge across slave faces, or along a slave mesh line): the
+  covered area, int N_j over it per node and the cut faces' row sums, closed form; a
+  master face folded in projection dropped; a non-convex slave face refused;
 * curved: the cylinder r = 1 meshed twice (non-matching): row sums, radial normals, the
   area's second-order convergence; warped faces (a saddle): row sums to D's accuracy;
 * distorted flat meshes: the same identities to the triangle rule's accuracy, which
