@@ -224,6 +224,11 @@ REGISTRY = [
            "step (large F: the answer has nodes that slip at a pressure near 0, between "
            "the held and the open states the iteration otherwise cycles between; inf: "
            "never)", "F0"),
+    Option("newton_pc_hold_slip", 1.0, float, "the preconditioner holds the slip nodes "
+           "with friction above F1 (a slip row's normal part is F times the node's normal "
+           "reaction row, which a smoother of the nodes' blocks cannot relax at a large "
+           "F); the Krylov method solves with their slip rows (not with a direct solve: "
+           "-newton_ksp_type preonly); inf: never", "F1"),
     Option("newton_stall_its", 8, int, "N steps that do not halve the lowest residual "
            "stop the iteration as stalled (then friction continuation, then load "
            "continuation)", "N"),

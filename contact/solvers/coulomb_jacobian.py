@@ -90,6 +90,12 @@ class CoulombJacobian:
         self.K = A if split is None else split.Ag
         self.mats = [self.K] if split is None else [split.Ag, split.Gt]
         self.separate = False            # K = A + D in a matrix of its own (storage)
+        #: the stored matrix holds the nodes pulled to the slip piece, their slip rows in
+        #: E (hold_pulled); op: the Krylov method's operator, K or K + E (a MATPYTHON)
+        self.hold_slip = np.inf
+        self.F = None
+        self.E = self._plus = None
+        self.op = self.K
         self._applied = None             # separate: the D that K holds now
         #: per contact-space component k: (the nodes whose row k is eliminated, values)
         self.dirichlet = None
@@ -244,6 +250,8 @@ class CoulombJacobian:
                     v[j, self.own[l_][q]] += w * rho * gam * (float(k == l_) - n[k] * n[l_])
                 v[j, self.own[2][q]] += w * F * rho * n[k]
                 V.append(v)
+        self._hold_pulled(st, q, V if q.size else None)
+        if q.size:
             rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
             cols = np.concatenate([self.cols[k][q] for k in range(2)])
             if not self.separate:                       # (separate: K += D below)
@@ -291,6 +299,47 @@ class CoulombJacobian:
         _EV_MAT.end()
         return K, rhs
 
+    def _hold_pulled(self, st, q, V):
+        """With hold_pulled, the nodes that pulled_to_slip gave the slip piece
+        (st["pulled"]; q: the slip nodes, V: their rows) get held rows in V, the stored
+        matrix's (diag_scale at their tangential dofs: the preconditioner's, and the
+        multigrid's coarse correction), and the Krylov method's operator `op` is the
+        stored matrix plus E, their slip rows' difference (a few rows). A slip row's
+        normal part is F times the node's normal reaction row (A_t - F n A_n): at a large
+        F it weighs its neighbours F times its own dof, which a smoother of the nodes'
+        blocks cannot relax (the beam at Nd 32, F = 1000: 47 such rows, GMRES at 1000
+        iterations, runs/results/friction-large.md); E has rank 2 a node, which GMRES
+        corrects. Collective."""
+        p = np.flatnonzero(self.F[q] > self.hold_slip) if V is not None else []
+        if not self.hold_slip < np.inf or not self.comm.tompi4py().allreduce(len(p), op=MPI.SUM):
+            self.op = self.K
+            return
+        if self.E is None:
+            m = self.cs.local_size
+            self.E = _pattern_matrix(self.A, self.rows,
+                                     self.cols.reshape(3 * m, self.cols.shape[2]))
+            kind = options.aij_subtype()
+            if kind is not None:
+                self.E.convert(kind)                               # (in place)
+            self._plus = PETSc.Mat().createPython(self.K.getSizes(), _Plus(self.K, self.E),
+                                                  comm=self.comm)
+            self._plus.setVecType(self.K.getVecType())
+            self._plus.setUp()
+        self.E.zeroEntries()
+        if len(p):
+            qp, rows, cols, vals = q[p], [], [], []
+            for k in range(2):
+                held = np.zeros_like(V[k][p])
+                held[np.arange(p.size), self.own[k][qp]] = self.diag_scale
+                rows.append(np.asarray(self.cs.dofs[k])[qp])
+                cols.append(self.cols[k][qp])
+                vals.append(V[k][p] - held)
+                V[k][p] = held
+            self.set_rows(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals),
+                          self.E)
+        self.E.assemble()
+        self.op = self._plus
+
     def _difference(self, st, q, V):
         """D = K - A in the contact rows (the multigrid's coarse correction): the slip rows
         (k = 0, 1 of the slip nodes q: V against A's), the eliminated rows (the active
@@ -318,3 +367,14 @@ class CoulombJacobian:
             a[nodes] = scale * vals
             c[k].setArray(a)
             cs.scatter(c[k], v, k)
+
+
+class _Plus:
+    """The Mat K + E (MATPYTHON context): K the stored matrix, E a few of its rows' change."""
+
+    def __init__(self, K, E):
+        self.K, self.E = K, E
+
+    def mult(self, mat, x, y):
+        self.K.mult(x, y)
+        self.E.multAdd(x, y, y)

@@ -217,9 +217,14 @@ class Multigrid:
         """The level operators of ksp's PCMG for the fine operator K = A + D, before its
         set-up (rediscretised only; nothing for PETSc's Galerkin products or another PC):
         A_c + P^T D P on the first coarse level (D: an AIJ Mat of K - A, nonzero in the
-        contact rows only, or None for A itself), Galerkin products below it."""
+        contact rows only, or None for A itself), Galerkin products below it. The finest
+        level's is K also where the Krylov method's operator is K plus a few rows
+        (coulomb_jacobian.py: _hold_pulled)."""
         pc = ksp.getPC()
-        if not self.rediscretised or pc.getType() != PETSc.PC.Type.MG:
+        if pc.getType() != PETSc.PC.Type.MG:
+            return
+        if not self.rediscretised:
+            pc.getMGSmoother(self.n_levels - 1).setOperators(K)
             return
         self.prepare()
         with options.inserted(GALERKIN if K.getComm().getSize() > 1 else {}):

@@ -176,6 +176,23 @@ def test_step_counts_friction_held_block():
     assert max(steps) <= 8 and min(steps) >= 2, steps
 
 
+def test_held_slip_rows_cut_the_krylov_iterations():
+    """-newton_pc_hold_slip 1 (default): the beam at Nd 12 (levels 6, 12), F = 100, whose
+    slip rows A_t - F n A_n the multigrid's smoother cannot relax: measured (1 rank) 226
+    Krylov iterations in all against 1328 with the rows in the preconditioner (inf), the
+    same Newton steps (20) and answer."""
+    sc = paper_scene(nd=12, mode="newton")
+    sc["contact"]["friction"] = 100.0
+    held = solve(scenes.validate(sc))
+    with options.inserted({"newton_pc_hold_slip": "inf"}):
+        plain = solve(scenes.validate(sc))
+    assert held.converged and plain.converged
+    assert held.inner.ksp_iterations < 0.5 * plain.inner.ksp_iterations, \
+        (held.inner.ksp_iterations, plain.inner.ksp_iterations)
+    (u, p), (ur, pref) = fields(held), fields(plain)
+    assert rel_err(u, ur) < 1e-7 and np.abs(p - pref).max() < 1e-7 * np.abs(pref).max()
+
+
 def test_glued_first_step_holds_the_active_nodes():
     with options.inserted({"newton_max_it": "1", "newton_error_if_not_converged": "false",
                            "check_tol": "0"}):
