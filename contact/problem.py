@@ -32,7 +32,7 @@ from contact.mesh.hierarchy import MeshHierarchy
 DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic",
                "coords", "parts", "physical_names", "clamped", "clamped_xyz", "coordinates",
                "has_contact_part", "normal", "cs", "frame", "A", "b", "u_D",
-               "contact_diagonal", "load_groups", "diag_scale", "nullspace", "n_dofs",
+               "contact_diagonal", "load_groups", "diag_scale", "energy_shift", "nullspace", "n_dofs",
                "to_xyz", "xyz_rows")
 
 

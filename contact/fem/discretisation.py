@@ -239,6 +239,14 @@ class Discretisation:
         self.b.set(0.0)
         for _, _, bg in self.load_groups:
             self.b.axpy(1.0, bg)
+        #: J(u) - J(x) for x = u - u_D (residuals.energy): J of the loops' unknown x (load
+        #: b = f - A u_D) leaves out 1/2 u_D.A u_D - f.u_D = -1/2 u_D.A u_D - b.u_D
+        self.energy_shift = 0.0
+        if self.u_D is not None:
+            Au = self.A.createVecLeft()
+            self.A.mult(self.u_D, Au)
+            self.energy_shift = -0.5 * Au.dot(self.u_D) - self.b.dot(self.u_D)
+            Au.destroy()
         self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
         zeros = np.zeros(len(self.clamped))
         for _, _, bg in self.load_groups:        # the eliminated rows carry no load

@@ -38,11 +38,14 @@ def max_displacement(comm, x):
 
 
 def energy(problem, x=None):
-    """J(u) = 1/2 <A u, u> - <b, u> + sum_j F_j g_j w_j |u_tau,j|."""
+    """J(u) = 1/2 <A u, u> - <f, u> + sum_j F_j g_j w_j |u_tau,j| at the full load, u =
+    x + u_D: J of the loops' unknown x (1/2 <A x, x> - <b, x>, b = f - A u_D) plus the
+    discretisation's energy_shift (1/2 <A u_D, u_D> - <f, u_D>), so that with a prescribed
+    displacement it is the body's energy, not one that depends on the lift u_D."""
     x = x if x is not None else problem.x
     Ax = x.duplicate()
     problem.A.mult(x, Ax)
-    J = 0.5 * Ax.dot(x) - problem.b.dot(x)
+    J = 0.5 * Ax.dot(x) - problem.b.dot(x) + problem.energy_shift
     Ax.destroy()
     cs = problem.cs
     if cs is not None and cs.size and problem.g is not None:
