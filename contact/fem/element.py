@@ -291,8 +291,9 @@ def _q2_face_jacobians(faces, coords, roles):
     """|J| of the 9-node faces at the corners of their refined quadrilaterals faces (f, 4)
     (each face's 4 quadrilaterals, found by its centre node, role 2), from the 3 nodes of
     each line through a node: x_xi = (-3 x_0 + 4 x_1 - x_2) / 2 at an end, (x_2 - x_0) / 2
-    in the middle; the node across a line's middle is the face's node nearest the
-    reflection (planar or mildly curved faces). Quadrilaterals of a face not given whole:
+    in the middle, the line's far nodes those of the quadrilaterals sharing an edge node
+    (the corner of the one across e1 ends c's line through e1, its other edge node is
+    across m from e2). Quadrilaterals of a face not given whole:
     q2_face_weights' |J| (exact where a face's middle nodes are its edges' midpoints)."""
     X = coords[faces]
     jac = q2_face_weights(X, roles) / _Q2_FACE_SHARE[np.minimum(roles, 2)]
@@ -308,14 +309,17 @@ def _q2_face_jacobians(faces, coords, roles):
     sel = np.flatnonzero(ok)[order].reshape(-1, 4)          # (g, 4) quads of each face
     Q = q[sel]                                              # (g, 4 quads, 4 nodes)
     C, M = coords[Q[:, :, 0]], coords[Q[:, :, 2]]
-    E = coords[np.sort(Q[:, :, [1, 3]].reshape(-1, 8), axis=1)[:, ::2]]   # (g, 4) edges
-
-    def across(p, cand):                                    # cand's point nearest p
-        i = np.argmin(np.linalg.norm(cand[:, None] - p[:, :, None], axis=3), axis=2)
-        return np.take_along_axis(cand, i[..., None], axis=1)
     E1, E2 = coords[Q[:, :, 1]], coords[Q[:, :, 3]]
-    C1, C2 = across(2 * E1 - C, C), across(2 * E2 - C, C)
-    O1, O2 = across(2 * M - E1, E), across(2 * M - E2, E)
+    others = ~np.eye(4, dtype=bool)[None]
+
+    def neighbour(e):                      # the quad sharing edge node Q[:, :, e]: its
+        share = ((Q[:, None, :, 1] == Q[:, :, None, e]) |          # corner, other edge
+                 (Q[:, None, :, 3] == Q[:, :, None, e])) & others
+        j = np.argmax(share, axis=2)[..., None]                    # (g, 4, 1)
+        nb = np.take_along_axis(Q, np.repeat(j, 4, axis=2), axis=1)  # its nodes (g, 4, 4)
+        other = np.where(nb[..., 1] == Q[..., e], nb[..., 3], nb[..., 1])
+        return coords[nb[..., 0]], coords[other]
+    (C1, O2), (C2, O1) = neighbour(1), neighbour(3)
     norm = lambda a, b: np.linalg.norm(cross3(a, b), axis=-1) / 4.0    # noqa: E731
     J = np.stack([norm(-3 * C + 4 * E1 - C1, -3 * C + 4 * E2 - C2),
                   norm(C1 - C, -3 * E1 + 4 * M - O1), norm(E1 - O1, E2 - O2),
