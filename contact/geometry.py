@@ -35,3 +35,17 @@ def rotation(axis, degrees):
     th = math.radians(degrees)
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
+
+
+def turn_scene(sc, axis, degrees, R):
+    """scene.turned's changes to the scene dict sc (in place): mesh.rotate, and its
+    tractions, body force and foundation turned by R."""
+    sc["mesh"]["rotate"] = {"axis": [float(a) for a in axis], "degrees": float(degrees)}
+    turn = lambda v: [float(c) for c in R @ np.asarray(v, dtype=float)]   # noqa: E731
+    for part in sc["boundary"].values():
+        if "traction" in part:
+            part["traction"] = turn(part["traction"])
+    sc["body_force"] = turn(sc.get("body_force", [0.0, 0.0, 0.0]))
+    fd = sc.setdefault("contact", {}).get("foundation", {})
+    sc["contact"]["foundation"] = {"point": turn(fd.get("point", [0.0, 0.0, 0.0])),
+                                   "normal": turn(fd.get("normal", [0.0, 0.0, 1.0]))}

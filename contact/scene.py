@@ -33,7 +33,8 @@ SCHEMA = {
     None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
            "solver", "loading"),
     "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate",
-             "element"),
+             "element", "grading"),
+    "grading": ("x", "y", "z"), "grading axis": ("bump", "progression"),
     "rotate": ("axis", "degrees", "origin"),
     "material": ("young", "poisson"),
     "contact": ("friction", "foundation", "gap"),
@@ -308,6 +309,8 @@ def validate(scene, sources=None):
         _box(mesh)
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
+    if "grading" in mesh:
+        _grading(mesh)
     el = mesh.get("element", "auto")
     if el != "auto" and el not in options.ELEMENT_NAMES:
         raise SceneError(f"mesh.element must be auto, {', '.join(options.ELEMENT_NAMES)}, "
@@ -347,11 +350,24 @@ def _box(mesh):
         raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {_shown(cpn)}")
 
 
+def _grading(mesh):
+    """mesh.grading (box): per axis one {bump: c} or {progression: r} (mesh/grading.py)."""
+    if mesh["type"] != "box":
+        raise SceneError(f"mesh.grading needs a box mesh (mesh.type: box), not {mesh['type']!r}")
+    _check_keys(mesh["grading"], "grading", "mesh.grading")
+    for axis, spec in mesh["grading"].items():
+        _check_keys(spec, "grading axis", f"mesh.grading.{axis}")
+        (kind, v), = spec.items() if len(spec) == 1 else [("bump|progression (one)", spec)]
+        if not _number(v) or not 1e-3 <= v <= 1e3:
+            raise SceneError(f"mesh.grading.{axis}.{kind} must be a number in [0.001, 1000], "
+                             f"got {_shown(v)}")
+        spec[kind] = float(v)
+
+
 def _rotate(rot):
-    """mesh.rotate: {axis, degrees, origin}: the mesh is turned by `degrees` about the
-    line through `origin` (default 0) along `axis`, after its boundary parts are found
-    (planes name the unrotated mesh; tractions, components and the foundation are in the
-    rotated x, y, z)."""
+    """mesh.rotate: {axis, degrees, origin}: the mesh turned about the line through `origin`
+    (default 0) along `axis` after its boundary parts are found (planes name the unrotated
+    mesh; tractions, components and the foundation are in the rotated x, y, z)."""
     _check_keys(rot, "rotate", "mesh.rotate")
     ax = _numbers(rot.get("axis"), 3, "mesh.rotate.axis")
     if not any(ax):
@@ -433,8 +449,7 @@ def _rest(scene):
 
 
 def _ramp(part, name):
-    """ramp: [t0, t1], 0 <= t0 < t1 <= 1: the part's load (traction or prescribed
-    displacement) grows linearly from 0 at the load parameter t0 to its full value at t1."""
+    """ramp: [t0, t1], 0 <= t0 < t1 <= 1: the part's load grows from 0 at t0 to full at t1."""
     if part["type"] not in ("traction", "dirichlet"):
         raise SceneError(f"boundary part {name!r}: ramp belongs to traction and dirichlet "
                          f"parts, not {part['type']}")
@@ -446,15 +461,13 @@ def _ramp(part, name):
 
 
 def ramp_factor(ramp, t):
-    """The factor of a part with ramp [t0, t1] at load parameter t (0 before t0, 1 after
-    t1, linear between)."""
+    """A part's factor at load parameter t: 0 before t0, 1 after t1, linear between."""
     t0, t1 = ramp
     return min(1.0, max(0.0, (t - t0) / (t1 - t0)))
 
 
 def _foundation(contact):
-    """contact.foundation: the plane through `point` with normal `normal` (pointing into
-    the body; any length but 0); defaults p = 0, n = e_z (the paper's)."""
+    """contact.foundation: the plane through `point`, `normal` into the body (0, e_z)."""
     fd = contact.setdefault("foundation", {})
     _check_keys(fd, "foundation", "contact.foundation")
     _numbers(fd.setdefault("point", [0.0, 0.0, 0.0]), 3, "contact.foundation.point")
@@ -476,22 +489,11 @@ def foundation_normal(scene):
 
 
 def turned(scene, axis, degrees):
-    """The scene turned as a whole by `degrees` about `axis` (through the origin): its
-    mesh (mesh.rotate), tractions, body force and foundation (point and normal). Elasticity
-    and Coulomb's law being invariant, its answer is u_turned(R X) = R u(X). Returns the
-    validated scene and R."""
-    import numpy as np
-    from contact.geometry import rotation
+    """(the validated scene turned by `degrees` about `axis` through the origin, R): mesh,
+    tractions, body force, foundation; its answer is u_turned(R X) = R u(X)."""
+    from contact.geometry import rotation, turn_scene
     sc, R = copy.deepcopy(scene), rotation(axis, degrees)
     if "rotate" in sc["mesh"]:
         raise SceneError("turned: the scene's mesh is already rotated")
-    sc["mesh"]["rotate"] = {"axis": [float(a) for a in axis], "degrees": float(degrees)}
-    turn = lambda v: [float(c) for c in R @ np.asarray(v, dtype=float)]   # noqa: E731
-    for part in sc["boundary"].values():
-        if "traction" in part:
-            part["traction"] = turn(part["traction"])
-    sc["body_force"] = turn(sc.get("body_force", [0.0, 0.0, 0.0]))
-    fd = sc.setdefault("contact", {}).get("foundation", {})
-    sc["contact"]["foundation"] = {"point": turn(fd.get("point", [0.0, 0.0, 0.0])),
-                                   "normal": turn(fd.get("normal", [0.0, 0.0, 1.0]))}
+    turn_scene(sc, axis, degrees, R)
     return validate(sc), R

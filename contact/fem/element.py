@@ -287,13 +287,55 @@ def q2_face_weights(Xf, roles):
     return _Q2_FACE_SHARE[roles] * jac
 
 
+def _q2_face_jacobians(faces, coords, roles):
+    """|J| of the 9-node faces at the corners of their refined quadrilaterals faces (f, 4)
+    (each face's 4 quadrilaterals, found by its centre node, role 2), from the 3 nodes of
+    each line through a node: x_xi = (-3 x_0 + 4 x_1 - x_2) / 2 at an end, (x_2 - x_0) / 2
+    in the middle, the line's far nodes those of the quadrilaterals sharing an edge node
+    (the corner of the one across e1 ends c's line through e1, its other edge node is
+    across m from e2). Quadrilaterals of a face not given whole:
+    q2_face_weights' |J| (exact where a face's middle nodes are its edges' midpoints)."""
+    X = coords[faces]
+    jac = q2_face_weights(X, roles) / _Q2_FACE_SHARE[np.minimum(roles, 2)]
+    k = np.argmin(roles, axis=1)                            # the face corner first
+    q = np.take_along_axis(faces, (k[:, None] + np.arange(4)) % 4, axis=1)   # c e1 m e2
+    if not np.array_equal(np.sort(roles, axis=1), np.tile([0, 1, 1, 2], (len(faces), 1))):
+        return jac
+    _, grp, cnt = np.unique(q[:, 2], return_inverse=True, return_counts=True)
+    ok = cnt[grp.ravel()] == 4
+    if not ok.any():
+        return jac
+    order = np.argsort(grp.ravel()[ok], kind="stable")
+    sel = np.flatnonzero(ok)[order].reshape(-1, 4)          # (g, 4) quads of each face
+    Q = q[sel]                                              # (g, 4 quads, 4 nodes)
+    C, M = coords[Q[:, :, 0]], coords[Q[:, :, 2]]
+    E1, E2 = coords[Q[:, :, 1]], coords[Q[:, :, 3]]
+    others = ~np.eye(4, dtype=bool)[None]
+
+    def neighbour(e):                      # the quad sharing edge node Q[:, :, e]: its
+        share = ((Q[:, None, :, 1] == Q[:, :, None, e]) |          # corner, other edge
+                 (Q[:, None, :, 3] == Q[:, :, None, e])) & others
+        j = np.argmax(share, axis=2)[..., None]                    # (g, 4, 1)
+        nb = np.take_along_axis(Q, np.repeat(j, 4, axis=2), axis=1)  # its nodes (g, 4, 4)
+        other = np.where(nb[..., 1] == Q[..., e], nb[..., 3], nb[..., 1])
+        return coords[nb[..., 0]], coords[other]
+    (C1, O2), (C2, O1) = neighbour(1), neighbour(3)
+    norm = lambda a, b: np.linalg.norm(cross3(a, b), axis=-1) / 4.0    # noqa: E731
+    J = np.stack([norm(-3 * C + 4 * E1 - C1, -3 * C + 4 * E2 - C2),
+                  norm(C1 - C, -3 * E1 + 4 * M - O1), norm(E1 - O1, E2 - O2),
+                  norm(C2 - C, -3 * E2 + 4 * M - O2)], axis=2)      # at c, e1, m, e2
+    back = (np.arange(4)[None, :] - k[sel.ravel(), None]) % 4       # q's order -> faces'
+    jac[sel.ravel()] = np.take_along_axis(J.reshape(-1, 4), back, axis=1)
+    return jac
+
+
 def nodal_face_weights(faces, coords, roles=None):
     """Per local vertex: sum over the given faces of int N_a ds (nv,). roles: per local
     vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals),
     None for q1 and bbar."""
     w = np.zeros(coords.shape[0])
     if faces.shape[0]:
-        fw = (face_weights(coords[faces]) if roles is None
-              else q2_face_weights(coords[faces], roles[faces]))
+        fw = (face_weights(coords[faces]) if roles is None else _Q2_FACE_SHARE[
+            roles[faces]] * _q2_face_jacobians(faces, coords, roles[faces]))
         np.add.at(w, faces.ravel(), fw.ravel())
     return w

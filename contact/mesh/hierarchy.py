@@ -28,6 +28,9 @@ interpolation from level j - 1 to level j as a Mat (block size 3): a fine vertex
 vertex, an edge or face midpoint or a cell centre of its parent cell (the refinement's child
 cells 8 p .. 8 p + 7 of coarse cell p, checked), so each row holds 1, 2, 4 or 8 weights of
 the parent's vertices. It is assembled from local data only (no array of global size).
+A graded box (mesh.grading, grading.py): level j's vertices are phi of its lattice (kept in
+Level.reference, where fine vertices are found in their parents); P's weights are the parent's
+trilinear functions at the graded place, so the graded levels' Q1 spaces stay nested.
 """
 import numpy as np
 from mpi4py import MPI
@@ -35,6 +38,7 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
+from contact.mesh.grading import local_coordinates, place
 from contact.mesh.refine import refine as refine_serial
 
 #: the automatic k keeps at least this many coarse cells per rank
@@ -69,6 +73,7 @@ class Level:
         self.nd, self.dm = nd, dm
         mesh.displacement_section(dm)
         self.conn, self.coords = mesh.cell_vertices(dm)
+        self.reference = self.coords             # the lattice's places (grading.place)
         g = dm.getGlobalVec()
         self.n_dofs = g.getSize()
         dm.restoreGlobalVec(g)
@@ -116,16 +121,21 @@ class MeshHierarchy:
         self.refinements = k
         self.partitioner = mesh.distribute(dm)
         self.levels = []
+        grading = m.get("grading")                        # mesh/grading.py
+        place_ = lambda lv: place(lv, [c * lv.nd for c in per], m["lower"],  # noqa: E731
+                                  m["upper"], grading)
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
+            if self.kind == "box" and grading:
+                place_(self.levels[0])
             return
         if comm.getSize() == 1 and not dmplex:      # refine.py: no faces or edges built
             for j in range(k + 1):
                 lv = Level(nd0 << j, self._typed(dm))
                 if self.kind == "box":
-                    _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
+                    place_(lv)
                 self.levels.append(lv)
-                dm = refine_serial(lv.dm, lv.conn, lv.coords) if j < k else None
+                dm = refine_serial(lv.dm, lv.conn, lv.reference) if j < k else None
             return
         dm.interpolate()                                  # DMRefine needs faces and edges
         for j in range(k + 1):
@@ -135,7 +145,7 @@ class MeshHierarchy:
                 dm = fine
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
             if self.kind == "box":
-                _snap_to_box(lv, [c * (nd0 << j) for c in per], m["lower"], m["upper"])
+                place_(lv)
             elif j == 0:
                 _mark_surfaces(dm, lv.dm)
             else:
@@ -209,24 +219,6 @@ class MeshHierarchy:
         del self._prolongations[j]
         self._taken.add(j)
         return P
-
-
-def _snap_to_box(level, cells, lower, upper):
-    """The level's vertex coordinates on the box's lattice, lower + i (upper - lower) / n as
-    DMPlexCreateBoxMesh writes them: a refined vertex is a mean of its parent's (an edge's
-    midpoint, ...), which rounds differently from vertex to vertex along one grid line;
-    snapped, the refined box is the box built whole, to the bit (canonical orders, which
-    sort by coordinates, rely on it)."""
-    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    h = (hi - lo) / np.asarray(cells, dtype=float)
-    x = level.coords
-    snapped = lo + h * np.rint((x - lo) / h)
-    if x.size and np.abs(snapped - x).max() > 1e-9 * np.abs(h).min():
-        raise MeshError("a refined vertex is off the box's lattice")
-    level.coords = snapped
-    v = level.dm.getCoordinatesLocal()
-    v.setArray(snapped.ravel())
-    level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
 
 
 def uninterpolated(dm):
@@ -390,10 +382,10 @@ class QuadraticCells:
         worst = 0.0
         for s in range(0, ncc, CHUNK // 8):
             p = np.arange(s, min(ncc, s + CHUNK // 8))
-            Xp = coarse.coords[coarse.conn[p]]                           # (n, 8, 3)
+            Xp = coarse.reference[coarse.conn[p]]                        # (n, 8, 3)
             target = np.einsum("qa,nai->nqi", ref, Xp)                   # (n, 27, 3)
             kids = fine.conn[(8 * p[:, None] + np.arange(8)).ravel()].reshape(p.size, 64)
-            d = np.linalg.norm(target[:, :, None, :] - fine.coords[kids][:, None, :, :],
+            d = np.linalg.norm(target[:, :, None, :] - fine.reference[kids][:, None, :, :],
                                axis=3)                                   # (n, 27, 64)
             at = np.argmin(d, axis=2)
             h = np.ptp(Xp, axis=1).max(axis=1)
@@ -451,13 +443,16 @@ def prolongation(coarse, fine):
     xi = np.empty((nv, 3))
     worst = 0.0
     for s in range(0, nv, CHUNK):
-        Xp = coarse.coords[coarse.conn[parent[s:s + CHUNK]]]           # (n, 8, 3)
+        Xp = coarse.reference[coarse.conn[parent[s:s + CHUNK]]]        # (n, 8, 3)
         cand = np.einsum("qa,nai->nqi", _N27, Xp)                      # (n, 27, 3)
-        d = np.linalg.norm(cand - fine.coords[verts[s:s + CHUNK], None, :], axis=2)
+        d = np.linalg.norm(cand - fine.reference[verts[s:s + CHUNK], None, :], axis=2)
         q = np.argmin(d, axis=1)
         h = np.ptp(Xp, axis=1).max(axis=1)
         worst = max(worst, float((d[np.arange(q.size), q] / h).max(initial=0.0)))
         xi[s:s + CHUNK] = _XI27[q]
+        if fine.reference is not fine.coords:          # graded: the Q1 values at its place
+            xi[s:s + CHUNK] = local_coordinates(_XI27[q], coarse.coords[coarse.conn[
+                parent[s:s + CHUNK]]], fine.coords[verts[s:s + CHUNK]])
     if comm.tompi4py().allreduce(worst, op=MPI.MAX) > 1e-8:
         raise MeshError(f"level {fine.nd}: a vertex is not a vertex, edge or face midpoint "
                         f"or centre of its parent cell (relative distance {worst:.2e})")

@@ -1,0 +1,116 @@
+"""Graded box meshes: the box's vertices on a per-axis monotone map of the lattice.
+
+Scene (mesh.type box): `grading: {x: {bump: 0.08}, z: {progression: 4.0}}`, one kind per
+axis (axes left out stay uniform). Along an axis with lower a and upper b a lattice point
+a + t (b - a), t in [0, 1], is placed at a + phi(t) (b - a), phi: [0, 1] -> [0, 1]
+increasing, phi(0) = 0, phi(1) = 1. The map is applied to every level of the hierarchy
+(hierarchy.py): level j's vertices are phi of level j's uniform lattice, so the family is
+one graded family, refined uniformly in t (h -> 0 everywhere), and its cells stay
+axis-aligned boxes (a tensor product of 1D maps).
+
+    bump c         (c > 0) the cell size, as a density of t, is (b - a) / phi'(t) with
+                   1 / phi' a parabola in t symmetric about 1/2: cells at both ends c
+                   times the size of those in the middle (c < 1: finer at the ends, c > 1:
+                   coarser, 1: uniform). With s = sqrt|1 - c|:
+                     c < 1: phi(t) = 1/2 + tanh((2t - 1) atanh(s)) / (2 s)
+                     c > 1: phi(t) = 1/2 + tan((2t - 1) atan(s)) / (2 s)
+                   gmsh's "Transfinite Curve {..} = n Using Bump c" is this size function
+                   (its meshGEdge.cpp: size -a (t - 1/2)^2 + b, b = -a / (4 (c - 1))):
+                   its nodes are phi(i / n) up to gmsh's numerical integration of the
+                   density (1e-3 of the cell size in tests/mesh/test_grading.py).
+    progression r  (r > 0) cell sizes growing geometrically along the axis, by r from the
+                   lower end to the upper one (the size ratio of the ends, phi'(1) /
+                   phi'(0) = r): phi(t) = (r^t - 1) / (r - 1). On n cells consecutive
+                   cells differ by r^(1/n): gmsh's "Using Progression q" on n cells is
+                   r = q^n, exactly (its nodes (q^i - 1) / (q^n - 1)).
+
+Ranges (scene.py: GRADING_RANGE): 1e-3 <= c, r <= 1e3. The q2 element's nodes are the
+vertices of the next level, phi of its lattice: the images of the element's reference
+nodes, and the element is isoparametric (fem/element.py), so its geometry is the one the
+nodes give (an edge's middle node is not the edge's midpoint: the element map is the
+quadratic interpolant of phi, positive where phi' varies little over an element).
+"""
+import numpy as np
+
+from contact.mesh.plex import MeshError
+
+AXES = ("x", "y", "z")
+KINDS = ("bump", "progression")
+
+
+def bump(t, c):
+    """gmsh's Bump c as a map of [0, 1] (module docstring)."""
+    t = np.asarray(t, dtype=float)
+    if c == 1.0:
+        return t.copy()
+    s = np.sqrt(abs(1.0 - c))
+    u = 2.0 * t - 1.0
+    v = np.tanh(u * np.arctanh(s)) if c < 1.0 else np.tan(u * np.arctan(s))
+    return _ends(t, 0.5 + v / (2.0 * s))
+
+
+def progression(t, r):
+    """Sizes growing by r from t = 0 to t = 1 (module docstring)."""
+    t = np.asarray(t, dtype=float)
+    if r == 1.0:
+        return t.copy()
+    return _ends(t, np.expm1(t * np.log(r)) / np.expm1(np.log(r)))
+
+
+def _ends(t, y):
+    """y with the ends exact (boundary planes are found by their coordinates)."""
+    return np.where(t <= 0.0, 0.0, np.where(t >= 1.0, 1.0, np.clip(y, 0.0, 1.0)))
+
+
+MAPS = {"bump": bump, "progression": progression}
+
+
+def graded(coords, grading, lower, upper):
+    """coords (n, 3) of the box [lower, upper] placed by `grading` (the scene's
+    mesh.grading, validated): a new array; axes not graded are copied as they are."""
+    out = np.array(coords, dtype=float, copy=True)
+    for axis, spec in (grading or {}).items():
+        (kind, value), = spec.items()
+        i, lo, hi = AXES.index(axis), float(lower[AXES.index(axis)]), float(upper[AXES.index(axis)])
+        t = (out[:, i] - lo) / (hi - lo)
+        x = lo + MAPS[kind](t, float(value)) * (hi - lo)
+        out[:, i] = np.where(t >= 1.0, hi, x)
+    return out
+
+
+def place(level, cells, lower, upper, grading=None):
+    """The level's vertices on the box's lattice, lower + i (upper - lower) / n as
+    DMPlexCreateBoxMesh writes them (level.reference), then graded (level.coords and the
+    DM's coordinates): a refined vertex is a mean of its parent's (an edge's midpoint,
+    ...), which rounds differently from vertex to vertex along one grid line; snapped, the
+    refined box is the box built whole, to the bit (canonical orders, which sort by
+    coordinates, rely on it). The refinement and the search for a fine vertex's place in
+    its parent (hierarchy.prolongation, QuadraticCells) use level.reference."""
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    h = (hi - lo) / np.asarray(cells, dtype=float)
+    x = level.reference
+    snapped = lo + h * np.rint((x - lo) / h)
+    if x.size and np.abs(snapped - x).max() > 1e-9 * np.abs(h).min():
+        raise MeshError("a refined vertex is off the box's lattice")
+    level.reference = snapped
+    level.coords = graded(snapped, grading, lo, hi) if grading else snapped
+    v = level.dm.getCoordinatesLocal()
+    if grading:           # a Vec of its own: DMRefine's mesh shares the one it had
+        v, level.lattice = v.duplicate(), None       # (and no box of identical cells)
+    v.setArray(level.coords.ravel())
+    level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
+
+
+def local_coordinates(xi, Xp, x):
+    """On graded levels: the place in [-1, 1]^3 of fine vertices x (n, 3) in their parent
+    cells Xp (n, 8, 3), axis-aligned boxes (a graded box's cells): per axis
+    2 (x - min) / (max - min) - 1. The trilinear parent functions at it are the coarse
+    Q1 space's values there, exactly (on an axis-aligned box the trilinear map is affine
+    per axis), so the graded levels' spaces are nested as the uniform ones are.
+    xi: the reference places (-1, 0, 1 per axis: the lattice's); where xi is -1 or 1 the
+    vertex lies on the parent's face (xi kept, exactly), where 0 strictly inside it."""
+    lo, hi = Xp.min(axis=1), Xp.max(axis=1)
+    out = np.where(xi == 0.0, 2.0 * (x - lo) / (hi - lo) - 1.0, xi)
+    if out.size and np.abs(out[xi == 0.0]).max(initial=0.0) >= 1.0:
+        raise MeshError("a graded level's vertex is not inside its parent cell")
+    return np.clip(out, -1.0, 1.0)
