@@ -10,6 +10,9 @@ import copy
 import os
 import sys
 
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")          # as the entry point (contact/__main__.py)
+
 #: the test folders, as the package's subpackages
 GROUPS = ("mesh", "fem", "solvers", "analysis", "io", "validation")
 _HERE = os.path.dirname(os.path.abspath(__file__))
