@@ -138,11 +138,6 @@ def from_levels(levels, element):
     return out
 
 
-#: why the energy is not estimated with prescribed displacements
-LIFTING = ("not estimated: with prescribed displacements J is that of u - u_D, without the "
-           "energy of the lifting u_D, which depends on the mesh")
-
-
 #: why T is not estimated without friction
 FRICTIONLESS = ("not estimated: frictionless, T = 0 (the value is rounding)")
 
@@ -157,8 +152,6 @@ def of_run(problem, s):
             "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
     levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
     est = from_levels(levels + [(problem.nd, this)], problem.element)
-    if est is not None and "energy" in est and getattr(problem.disc, "u_D", None) is not None:
-        est["energy"].update(error=None, order=None, extrapolated=None, note=LIFTING)
     if est is not None and "tangential_force" in est and s["mode"] == "frictionless":
         est["tangential_force"].update(error=None, order=None, extrapolated=None,
                                        note=FRICTIONLESS)
