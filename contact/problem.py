@@ -90,7 +90,11 @@ class ContactProblem:
         stage = PETSc.Log.Stage("Solve")
         stage.push()
         try:
-            start = self._coarse_start() if driver.needs_start(self) else None
+            start = None
+            if driver.needs_start(self):
+                start = self._coarse_start()
+            elif self.estimating and driver.load_steps(self.scene) > 1:
+                self._coarse_start(prolong=False)    # the coarser levels' own load paths
             record, increments = output.increment_recorder() \
                 if driver.load_steps(self.scene) > 1 else (None, [])
             self.solution = driver.solve(self, start, record)
@@ -118,11 +122,13 @@ class ContactProblem:
             raise ValueError(f"-c2f_levels must be >= -1 (-1: automatic), got {levels}")
         return levels
 
-    def _coarse_start(self):
+    def _coarse_start(self, prolong=True):
         """Solve the scene on the hierarchy's next coarser level (itself started from the
         one below, as many levels as asked: -1, automatic, is every coarser level with
         Nd >= 4 in the newton mode and none for the loops), prolong x, l, g to this mesh
-        (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None."""
+        (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None. prolong
+        False (load increments, which start from 0): the coarser levels are solved, each
+        along its own load path, only for the error estimate's values (coarse_runs)."""
         levels = self.c2f_asked
         h = self.hierarchy
         lowest = 1 if h.quadratic else 0          # q2's nodes: a level above its elements'
@@ -138,7 +144,7 @@ class ContactProblem:
             if note not in self.skipped:
                 self.skipped.append(note)
             levels = below
-        if levels == 0 or self.scene.get("loading", {}).get("steps", 1) > 1:
+        if levels == 0:
             return None
         j = self.level - 1
         sc = copy.deepcopy(self.scene)
@@ -154,6 +160,10 @@ class ContactProblem:
             {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
              "iterations": coarse.iterations(),
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
+        if not prolong:
+            del coarse
+            gc.collect()
+            return None
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
         if estimating and self.level == len(h.levels) - 1:

@@ -158,8 +158,7 @@ def of_run(problem, s):
     if est is not None:
         return est, (f"discretisation error from the levels Nd = "
                      f"{', '.join(str(n) for n, _ in levels + [(problem.nd, None)])}")
-    why = ("load increments (no coarse-to-fine start)" if s["load_steps"] > 1 else
-           f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
+    why = (f"{len(levels) + 1} level(s) solved (three are needed: a box Nd with two factors "
            "of 2, Nd >= 16; -c2f_levels; a mesh file has one: -mesh_refine 2 -c2f_levels 2)")
     return None, f"no estimate: {why}"
 
