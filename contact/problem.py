@@ -32,8 +32,8 @@ from contact.mesh.hierarchy import MeshHierarchy
 DISC_FIELDS = ("dm", "nd", "partitioner", "element", "conn", "elements", "quadratic",
                "coords", "parts", "physical_names", "clamped", "clamped_xyz", "coordinates",
                "has_contact_part", "normal", "cs", "frame", "A", "b", "u_D",
-               "contact_diagonal", "load_groups", "diag_scale", "energy_shift", "nullspace", "n_dofs",
-               "to_xyz", "xyz_rows")
+               "contact_diagonal", "load_groups", "diag_scale", "energy_shift", "nullspace",
+               "n_dofs", "to_xyz", "xyz_rows")
 
 
 #: the solution's fields (driver.solve's Solution), read through the problem
@@ -160,13 +160,21 @@ class ContactProblem:
             {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
              "iterations": coarse.iterations(),
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
-        if not prolong:
-            del coarse
-            gc.collect()
-            return None
+        start = self._prolonged_start(coarse) if prolong else None
+        del coarse
+        gc.collect()              # the coarse levels' matrices, before the fine solve
+        if self.level == len(h.levels) - 1:
+            if self.solvers.multigrid is not None:
+                self.solvers.multigrid.prepare()     # (its coarse level's stiffness)
+            h.release_below(self.level)              # their meshes too
+        return start
+
+    def _prolonged_start(self, coarse):
+        """x, and (l0, g0) contact Vecs, prolonged from the coarser level's solution."""
+        h = self.hierarchy
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
-        if estimating and self.level == len(h.levels) - 1:
+        if self.estimating and self.level == len(h.levels) - 1:
             self._prolonged = self.x.copy()          # P u_2h: estimate.cell_indicator
         l0, g0 = self.cs.vec(), self.cs.vec()
         transfer.prolong_contact(P, coarse, self, coarse.l, l0)
@@ -174,12 +182,6 @@ class ContactProblem:
             transfer.prolong_contact(P, coarse, self, coarse.g, g0)
         PETSc.Sys.Print(f"c2f: started Nd = {self.nd} from the solution at Nd = {coarse.nd}",
                         comm=self.comm)
-        del coarse
-        gc.collect()              # the coarse levels' matrices, before the fine solve
-        if self.level == len(h.levels) - 1:
-            if self.solvers.multigrid is not None:
-                self.solvers.multigrid.prepare()     # (its coarse level's stiffness)
-            h.release_below(self.level)              # their meshes too
         return l0, g0
 
     # -- the solution ------------------------------------------------------------------------

@@ -10,8 +10,8 @@ import copy
 import os
 import sys
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")          # as the entry point (contact/__main__.py)
+from contact import __main__ as _entry  # noqa: E402,F401  (its one BLAS thread a rank,
+#                                         set before numpy loads; PETSc is initialised below)
 
 #: the test folders, as the package's subpackages
 GROUPS = ("mesh", "fem", "solvers", "analysis", "io", "validation")

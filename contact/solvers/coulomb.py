@@ -172,7 +172,6 @@ class CoulombNewton(LinearCounts, Loop):
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.linear.direct:
             self.pc_reuse = False        # a kept factorisation would be a wrong Jacobian
-        self.jac.F = self.F
         self.jac.hold_slip = self.pc_hold_slip if self.split is None and \
             not self.linear.direct else np.inf
 
@@ -272,7 +271,7 @@ class CoulombNewton(LinearCounts, Loop):
         d = np.where(pull, -self.w * F * st["an"], 0.0)     # r_t: the slip piece's - R_t
         self.pulled += n                  # (over all ranks)
         return dict(st, active=st["active"] | pull, slip=st["slip"] | pull, n1=n1, n2=n2,
-                    c=np.where(pull, 0.0, st["c"]), dr=(d * n1, d * n2), pulled=pull)
+                    c=np.where(pull, 0.0, st["c"]), dr=(d * n1, d * n2))
 
     def held_reversals(self, st):
         """The sets of the next Newton step's Jacobian: st's own, except that a slip node
@@ -319,7 +318,7 @@ class CoulombNewton(LinearCounts, Loop):
             b, sol = self.split.vecs(rhs, self.dx)
             self.split.p.set(0.0)
         else:
-            self.ksp.setOperators(self.jac.op, K)     # (op: K, or K + the pulled rows)
+            self.ksp.setOperators(self.jac.op, K)     # (op: K, or K + the held slip rows)
             b, sol = rhs, self.dx
         self.ksp.setTolerances(rtol=rtol)
         reuse = self.pc_reuse and self.pc_setups > 0 and not self._rebuild

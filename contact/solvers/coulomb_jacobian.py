@@ -90,10 +90,9 @@ class CoulombJacobian:
         self.K = A if split is None else split.Ag
         self.mats = [self.K] if split is None else [split.Ag, split.Gt]
         self.separate = False            # K = A + D in a matrix of its own (storage)
-        #: the stored matrix holds the nodes pulled to the slip piece, their slip rows in
-        #: E (hold_pulled); op: the Krylov method's operator, K or K + E (a MATPYTHON)
+        #: the stored matrix holds the slip nodes of friction above hold_slip, their slip
+        #: rows in E (_hold_slip); op: the Krylov method's operator, K or K + E (MATPYTHON)
         self.hold_slip = np.inf
-        self.F = None
         self.E = self._plus = None
         self.op = self.K
         self._applied = None             # separate: the D that K holds now
@@ -250,7 +249,7 @@ class CoulombJacobian:
                     v[j, self.own[l_][q]] += w * rho * gam * (float(k == l_) - n[k] * n[l_])
                 v[j, self.own[2][q]] += w * F * rho * n[k]
                 V.append(v)
-        self._hold_pulled(st, q, V if q.size else None)
+        self._hold_slip(q, V if q.size else None, F)
         if q.size:
             rows = np.concatenate([np.asarray(cs.dofs[k])[q] for k in range(2)])
             cols = np.concatenate([self.cols[k][q] for k in range(2)])
@@ -299,19 +298,19 @@ class CoulombJacobian:
         _EV_MAT.end()
         return K, rhs
 
-    def _hold_pulled(self, st, q, V):
-        """With hold_pulled, the nodes that pulled_to_slip gave the slip piece
-        (st["pulled"]; q: the slip nodes, V: their rows) get held rows in V, the stored
-        matrix's (diag_scale at their tangential dofs: the preconditioner's, and the
-        multigrid's coarse correction), and the Krylov method's operator `op` is the
-        stored matrix plus E, their slip rows' difference (a few rows). A slip row's
-        normal part is F times the node's normal reaction row (A_t - F n A_n): at a large
-        F it weighs its neighbours F times its own dof, which a smoother of the nodes'
-        blocks cannot relax (the beam at Nd 32, F = 1000: 47 such rows, GMRES at 1000
-        iterations, runs/results/friction-large.md); E has rank 2 a node, which GMRES
-        corrects. Collective."""
-        p = np.flatnonzero(self.F[q] > self.hold_slip) if V is not None else []
-        if not self.hold_slip < np.inf or not self.comm.tompi4py().allreduce(len(p), op=MPI.SUM):
+    def _hold_slip(self, q, V, Fq):
+        """The slip nodes q (their rows V, friction Fq) with friction above hold_slip get
+        held rows in V, the stored matrix's (diag_scale at their tangential dofs: the
+        preconditioner's, and the multigrid's coarse correction), and the Krylov method's
+        operator `op` is the stored matrix plus E, their slip rows' difference (a few
+        rows). A slip row's normal part is F times the node's normal reaction row
+        (A_t - F n A_n): at a large F it weighs its neighbours F times its own dof, which a
+        smoother of the nodes' blocks cannot relax (runs/results/friction-large.md: the
+        beam at Nd 16, F = 1e4, 68 Krylov iterations held, 559 not); E has rank 2 a node,
+        which GMRES corrects. Collective."""
+        p = np.flatnonzero(Fq > self.hold_slip) if V is not None else []
+        if not self.hold_slip < np.inf or \
+                not self.comm.tompi4py().allreduce(len(p), op=MPI.SUM):
             self.op = self.K
             return
         if self.E is None:

@@ -219,7 +219,7 @@ class Multigrid:
         A_c + P^T D P on the first coarse level (D: an AIJ Mat of K - A, nonzero in the
         contact rows only, or None for A itself), Galerkin products below it. The finest
         level's is K also where the Krylov method's operator is K plus a few rows
-        (coulomb_jacobian.py: _hold_pulled)."""
+        (coulomb_jacobian.py: _hold_slip)."""
         pc = ksp.getPC()
         if pc.getType() != PETSc.PC.Type.MG:
             return
