@@ -47,6 +47,9 @@ def dofs(scene, element):
     """The displacement dofs of `scene` with `element`, or None where they cannot be
     counted before the mesh is read (mesh files)."""
     m = scene["mesh"]
+    if m.get("type") == "bodies":                        # several boxes (scene_bodies.py)
+        return sum(3 * math.prod(int(m.get("nd", 1)) * int(c) + 1 for c in b["cells"])
+                   for b in m["bodies"].values())
     if m.get("type", "box") != "box":
         return None
     up = 2 if element in ("q2", "q2p1") else 1          # q2: nodes on the refined mesh

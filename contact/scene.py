@@ -15,7 +15,7 @@ import reprlib
 import yaml
 from petsc4py import PETSc
 
-from contact import expression, options
+from contact import expression, options, scene_bodies
 
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
@@ -31,9 +31,9 @@ MESH_TYPES = ("box", "file", "gmsh")
 #: the keys a scene may have, per section (anything else is a typo or unsupported)
 SCHEMA = {
     None: ("name", "description", "mesh", "material", "body_force", "boundary", "contact",
-           "solver", "loading"),
+           "solver", "loading", "bodies"),
     "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate",
-             "element", "grading"),
+             "element", "grading", "bodies"),
     "grading": ("x", "y", "z"), "grading axis": ("bump", "progression"),
     "rotate": ("axis", "degrees", "origin"),
     "material": ("young", "poisson"),
@@ -45,6 +45,8 @@ SCHEMA = {
                "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
     "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
+    "body part": ("plane", "type", "traction", "components", "displacement", "ramp", "body",
+                  "master"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -142,9 +144,8 @@ def load(path):
 
 
 def _get(d, path):
-    for k in path:
-        d = d[k] if isinstance(d, dict) else d[int(k)]
-    return d
+    return d if not path else _get(d[path[0]] if isinstance(d, dict) else d[int(path[0])],
+                                   path[1:])
 
 
 def _set(d, path, value):
@@ -278,6 +279,8 @@ def validate(scene, sources=None):
     """Check the keys and values a run needs; raise SceneError naming the first bad one.
     sources: where the expressions came from (path -> words), for the messages."""
     _check_keys(scene, None, "the scene")
+    if "bodies" in scene:                   # several bodies (scene_bodies.py)
+        scene_bodies.expand(scene)
     for section in ("mesh", "material", "contact", "solver", "loading"):
         if section in scene:
             _check_keys(scene[section], section, f"section '{section}'")
@@ -290,9 +293,8 @@ def validate(scene, sources=None):
     _kinds(scene)
     mesh = scene["mesh"]
     kind = mesh.setdefault("type", "box")
-    if kind not in MESH_TYPES:
-        raise SceneError(f"mesh.type must be one of {', '.join(MESH_TYPES)}, got "
-                         f"{_shown(kind)}")
+    if kind not in MESH_TYPES and not (kind == "bodies" and "bodies" in scene):
+        raise SceneError(f"mesh.type must be one of {', '.join(MESH_TYPES)}, got {_shown(kind)}")
     nd = mesh.get("nd", 1)
     if not isinstance(nd, int) or isinstance(nd, bool) or nd < 1:
         raise SceneError(f"nd must be an integer >= 1 (mesh.nd), got {_shown(nd)}")
@@ -305,7 +307,7 @@ def validate(scene, sources=None):
                 isinstance(k, str) and _number(v) for k, v in params.items()):
             raise SceneError(f"mesh.parameters must map names to finite numbers, got "
                              f"{_shown(params)}")
-    else:
+    elif kind == "box":
         _box(mesh)
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
@@ -380,10 +382,8 @@ def _rotate(rot):
 
 def _material(mat):
     _positive(mat.get("young"), "Young's modulus (material.young)")
-    nu = mat.get("poisson")
-    if not isinstance(nu, (int, float)) or isinstance(nu, bool) or not (-1.0 < nu < 0.5):
-        raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got "
-                         f"{_shown(nu)}")
+    if not _number(nu := mat.get("poisson")) or not -1.0 < nu < 0.5:
+        raise SceneError(f"Poisson ratio (material.poisson) must be in (-1, 0.5), got {_shown(nu)}")
 
 
 def _rest(scene):
@@ -408,7 +408,8 @@ def _rest(scene):
     for name, part in parts.items():
         if not isinstance(name, str):
             raise SceneError(f"boundary part names must be strings, got {_shown(name)}")
-        _check_keys(part, "part", f"boundary part '{name}'")
+        _check_keys(part, "body part" if "bodies" in scene else "part",
+                    f"boundary part '{name}'")
         t = part.get("type")
         if t not in PART_TYPES:
             raise SceneError(f"boundary part {name!r}: type must be one of {PART_TYPES}, got "

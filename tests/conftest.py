@@ -65,6 +65,45 @@ def block_scene(parts, nd=2, young=1.0e3, poisson=0.3, friction=0.0, size=(1.0, 
     return scenes.validate(sc)
 
 
+def two_blocks(friction=0.0, p=0.01, shifted=False, young=(1.0, 1.0), poisson=0.3, base_cells=5,
+               punch_cells=7, base=((0.0, 0.0), (1.0, 1.0)), push=None):
+    """Two bodies (tests/fem/test_pairs.py): a base [0,1]^2 x [0,0.5] (`base`: its x, y
+    extent) on a clamped bottom, a punch on it pressed by p. Symmetric
+    (planes x = 0, y = 0 through both) or shifted (the punch [0.1,0.9]^2 inside the base's
+    top, held laterally on its own faces x = 0.1, y = 0.1; base clamped). push: instead of
+    p, the punch's top moved by this displacement, the base's bottom clamped."""
+    lo, hi = ((0.1, 0.1), (0.9, 0.9)) if shifted else ((0.0, 0.0), (1.0, 1.0))
+    mat = [{"young": e, "poisson": poisson} for e in young]
+    sc = {"name": "two_blocks",
+          "bodies": {"base": {"lower": [*base[0], 0.0], "upper": [*base[1], 0.5],
+                              "cells": [base_cells, base_cells, 3], "material": mat[0]},
+                     "punch": {"lower": [lo[0], lo[1], 0.5], "upper": [hi[0], hi[1], 1.0],
+                               "cells": [punch_cells, punch_cells, 3], "material": mat[1]}},
+          "boundary": {"press": {"type": "traction", "body": "punch", "plane": ["z", 1.0],
+                                 "traction": [0.0, 0.0, -p]},
+                       "interface": {"type": "contact", "body": "punch", "plane": ["z", 0.5],
+                                     "master": {"body": "base"}}},
+          "contact": {"friction": friction}, "solver": {"mode": "newton", "newton_rtol": 1e-12}}
+    b = sc["boundary"]
+    if shifted:
+        b["bottom"] = {"type": "dirichlet", "body": "base", "plane": ["z", 0.0]}
+        b["hold_x"] = {"type": "dirichlet", "body": "punch", "plane": ["x", 0.1],
+                       "components": ["x"]}
+        b["hold_y"] = {"type": "dirichlet", "body": "punch", "plane": ["y", 0.1],
+                       "components": ["y"]}
+    else:
+        b["bottom"] = {"type": "dirichlet", "body": "base", "plane": ["z", 0.0],
+                       "components": ["z"]}
+        b["sym_x"] = {"type": "symmetry", "plane": ["x", 0.0]}
+        b["sym_y"] = {"type": "symmetry", "plane": ["y", 0.0]}
+    if push is not None:
+        sc["boundary"] = {"bottom": {"type": "dirichlet", "body": "base", "plane": ["z", 0.0]},
+                          "top": {"type": "dirichlet", "body": "punch", "plane": ["z", 1.0],
+                                  "displacement": list(push)},
+                          "interface": b["interface"]}
+    return sc
+
+
 def solve(sc, comm=None):
     return ContactProblem(sc, comm or PETSc.COMM_WORLD).solve()
 

@@ -15,7 +15,8 @@ import os
 
 import numpy as np
 import pytest
-from conftest import PAPER, ROOT, block_scene, fields, paper_scene, rel_err, solve
+from conftest import (PAPER, ROOT, block_scene, fields, paper_scene, rel_err, solve,
+                      two_blocks)
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -112,6 +113,22 @@ def test_block_on_a_tilted_foundation():
     sc["contact"]["foundation"] = {"normal": [0.1, 0.0, 1.0], "point": [0.0, 0.0, 0.0]}
     du, dp, par, _ = _compare(sc)
     assert du < TOL and dp < TOL, (du, dp)
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_two_bodies(friction):
+    """A punch pushed down and sideways on a base (a dual-mortar pair, fem/pairs.py): the
+    partition cuts the interface, slave and master faces on other ranks (the surfaces are
+    gathered on every rank, each assembles its own rows of the change of basis)."""
+    sc = two_blocks(friction=friction, punch_cells=4, base=((-0.1, -0.1), (1.1, 1.1)),
+                    push=(0.002, 0.002, -0.004))
+    du, dp, par, ser = _compare(sc, EXACT)
+    assert du < TOL and dp < TOL, (du, dp)
+    assert par.iterations()["inner_total"] == ser.iterations()["inner_total"]
+    if MPI.COMM_WORLD.size >= 2:            # the pair spans ranks: slave nodes and master
+        mpi = par.comm.tompi4py()           # cells (the base's) not all on one rank
+        mine = (par.cs.local_size > 0, bool(np.any(par.disc.body_of == 0)))
+        assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
 
 
 def test_cli_files_on_all_ranks(mpi_tmp_path):

@@ -143,8 +143,11 @@ def body_stress(problem, u=None):
     s, vol = np.zeros((nc, 6)), np.zeros(nc)
     q = problem.quadratic
     if q is None:
+        per = problem.disc.cell_lame()              # several bodies: a material per cell
         for a in range(0, nc, fem.CHUNK):
             c = conn[a:a + fem.CHUNK]
+            if per is not None:
+                lam, mu = per[0][a:a + fem.CHUNK], per[1][a:a + fem.CHUNK, None, None]
             s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
     else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
         m = fem.PRESSURES.get(problem.element)

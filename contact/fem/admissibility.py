@@ -28,6 +28,8 @@ def check(disc):
     free, so the foundation must hold the body (the Newton iteration's first step then
     closes every contact node: from an open gap nothing else would hold it)."""
     check_prescribed_on_contact(disc)
+    if getattr(disc, "pair", None) is not None:   # two bodies: not a rigid foundation's checks
+        return None, True
     return check_rigid_motion(disc, options.get("statics_check"))
 
 

@@ -143,18 +143,20 @@ def _element_matrices(conn, coords, lam, mu, element, frame):
 
 
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
-                       lam=None, blocked=False, lattice=None):
+                       lam=None, blocked=False, lattice=None, groups=None):
     """Global stiffness matrix A (AIJ, or BAIJ when `blocked`; block size 3: create_matrix)
     of `element` (ELEMENTS), unconstrained; in the basis of a contact frame
     (contact/fem/frame.py: T^T A T) when one is given. lam: Lame's lambda instead of that of
     (young, poisson) (a split of the volumetric stiffness, mixed.py). lattice: the cells'
     mesh.lattice, where they are a box of identical cells on one process: then A is
-    their stencil (fem/stencil.py) instead of their sum, cell by cell."""
+    their stencil (fem/stencil.py) instead of their sum, cell by cell. groups: [(cells,
+    young, poisson)], a material per group of cells (several bodies) instead of one."""
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
     kind = None if blocked else create_matrix_type()
     lg, stencil_asked = dm.getLGMap(), options.get("assembly_stencil")
     if (lattice is not None and frame is None and conn.shape[1] == 8   # (a frame turns rows)
+            and groups is None
             and dm.getComm().getSize() == 1 and stencil_asked
             and np.array_equal(lg.getBlockIndices(), np.arange(coords.shape[0]))):
         _EV_ASSEMBLE.begin()
@@ -166,10 +168,12 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         idx_type = PETSc.IntType
         _EV_ASSEMBLE.begin()
-        for c, Ke in _element_matrices(conn, coords, lam, mu, element, frame):
-            A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
-                                       Ke.reshape(c.shape[0], -1),
-                                       addv=PETSc.InsertMode.ADD_VALUES)
+        for cells, lam_g, mu_g in ([(conn, lam, mu)] if groups is None else
+                                   [(conn[g], *lame(e, p)) for g, e, p in groups]):
+            for c, Ke in _element_matrices(cells, coords, lam_g, mu_g, element, frame):
+                A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
+                                           Ke.reshape(c.shape[0], -1),
+                                           addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
         if kind is not None:
             _to_aij(A)

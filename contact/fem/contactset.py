@@ -14,7 +14,9 @@ the two other components; for any other n the contact nodes' dofs are those of t
 basis (t1, t2, n) of contact/fem/frame.py (built by the discretisation from `nodes`),
 so u . n = u~_3 and x_tau = (u~_1, u~_2).
 Non-penetration: u_nu,j <= gap_j, where gap_j = (X_j - p) . n (the distance to the plane)
-or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)).
+or a scene expression in x, y, z (e.g. a Hertz gap (x**2 + y**2)/(2*R)), or given per
+vertex (a contact pair's, fem/pairs.py: `covered` then marks the slave vertices the master
+faces; the others are no contact nodes).
 In contact space, component 2 is the normal one and 0, 1 are the tangential ones.
 
 Contact-space quantities (l, g, w, F, ...) are PETSc Vecs of the contact nodes owned by
@@ -47,7 +49,8 @@ class ContactSet:
     """Contact nodes, weights w, friction F and the scatters to contact space."""
 
     def __init__(self, dm, coords, faces, clamped_rows, friction, template,
-                 normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None, roles=None):
+                 normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None, roles=None,
+                 covered=None):
         comm = dm.getComm()
         self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
         axis = axis_of(self.normal)
@@ -96,6 +99,8 @@ class ContactSet:
         errs = [e for e in comm.tompi4py().allgather(err) if e]
         if errs:
             raise ValueError(errs[0])
+        if covered is not None:                  # a contact pair: where the master faces it
+            active &= covered
         nodes = np.flatnonzero(active)
         #: the owned contact nodes (block rows of the displacement Vec, local numbering)
         self.nodes = nodes
@@ -115,6 +120,8 @@ class ContactSet:
             err = f"friction {friction!r} must be finite and >= 0 on the contact face"
         if gap is None:                                   # distance to the plane
             G = (owned_xyz[nodes] - np.asarray(point, dtype=float)) @ self.normal
+        elif isinstance(gap, np.ndarray):                 # per owned vertex (a pair's)
+            G = gap[nodes]
         else:
             try:
                 G = friction_values(gap, owned_xyz[nodes], what="gap")

@@ -12,10 +12,13 @@ vectors, and the solution lives in the problem (problem.py).
 """
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from contact import fem, mesh, options
 from contact.fem.contactset import ContactSet
 from contact.fem.frame import ContactFrame
+from contact.fem.pairs import ContactPair
+from contact.mesh import bodies as mesh_bodies
 from contact.geometry import basis
 from contact.scene import AXES, SceneError, foundation_normal
 
@@ -72,8 +75,14 @@ class Discretisation:
             where = f"the physical surface {group!r}"
         else:
             axis, value = part["plane"]
-            faces = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
-            where = f"the plane {axis} = {value}"
+            if "body" in part:                 # a body's faces there (mesh/bodies.py)
+                faces = mesh_bodies.body_faces(conn, coords, self.body_of,
+                                               list(self.bodies).index(part["body"]),
+                                               AXES[axis], float(value))
+            else:
+                faces = mesh.boundary_faces(conn, coords, AXES[axis], float(value))
+            where = f"the plane {axis} = {value}" + (f" of body {part['body']!r}"
+                                                     if "body" in part else "")
         if self.comm.tompi4py().allreduce(faces.shape[0]) == 0:
             raise SceneError(f"boundary part {name!r}: no cell face lies on {where}")
         return faces
@@ -107,6 +116,13 @@ class Discretisation:
         self.lattice = lv.lattice
         # (on a lattice every cell is the first, translated: its check is theirs)
         mesh.check_cells(comm, conn[:1] if self.lattice is not None else conn, coords)
+        #: several bodies (scene_bodies.py): {name: box}, and each local cell's body index
+        self.bodies = m["bodies"] if m["type"] == "bodies" else None
+        self.body_of = None if self.bodies is None else \
+            mesh_bodies.cell_bodies(self.bodies, conn, coords)
+        if self.bodies is not None and len(self.hierarchy.levels) > 1:
+            raise SceneError("a scene with bodies: runs on one mesh level for now (no "
+                             "-mesh_refine, -c2f_levels or -error_estimate)")
         self.element = element_of(sc)
         #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)
@@ -128,14 +144,68 @@ class Discretisation:
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
                                         element=self.element, blocked=blocked,
-                                        lattice=self.lattice)
+                                        lattice=self.lattice, groups=self._materials())
         self._loads()
         self.contact_diagonal = self._contact_diagonal()
         # the rigid-body modes are GAMG's: the multigrid with rediscretised levels (BAIJ)
         # has no use for them (6 Vecs of A's size: 0.05 kB per dof)
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame,
-                                                  near_nullspace=not blocked)
+                                                  near_nullspace=not blocked and
+                                                  self.pair is None)
+        if self.pair is not None:                # each body's rigid modes, in the pair's basis
+            self.nullspace = self.pair.rigid_body_nullspace(self.coordinates,
+                                                            self._body_masks())
+            self.A.setNearNullSpace(self.nullspace)
         self.n_dofs = self.A.getSize()[0]
+
+    def _materials(self):
+        """[(cells, young, poisson)] per body, or None (one body: the scene's material)."""
+        if self.bodies is None:
+            return None
+        return [(np.flatnonzero(self.body_of == i), b["material"]["young"],
+                 b["material"]["poisson"]) for i, b in enumerate(self.bodies.values())]
+
+    def cell_lame(self):
+        """(lambda, mu) per local cell (several bodies), or None (the scene's material)."""
+        if self.bodies is None:
+            return None
+        lm = np.array([fem.lame(b["material"]["young"], b["material"]["poisson"])
+                       for b in self.bodies.values()])
+        return lm[self.body_of, 0], lm[self.body_of, 1]
+
+    def _body_masks(self):
+        """A Vec per body, 1 on its dofs."""
+        out = []
+        for i in range(len(self.bodies)):
+            loc = np.zeros((self.coords.shape[0], 3))
+            loc[self.conn[self.body_of == i]] = 1.0
+            g = fem.local_to_global(self.dm, loc.ravel())
+            g.setArray(np.minimum(g.getArray(readonly=True), 1.0))
+            out.append(g)
+        return out
+
+    def _pair(self, name, part):
+        """The contact pair of contact part `name` (fem/pairs.py): its slave faces are the
+        part's, its master faces those of master.body on master.plane."""
+        m, names = part["master"], list(self.bodies)
+        axis, value = AXES[part["plane"][0]], float(part["plane"][1])
+        slave_box = self.bodies[part["body"]]
+        if abs(value - slave_box["lower"][axis]) > 1e-9:
+            raise SceneError(f"contact pair {name!r}: the slave faces must be the lower side "
+                             f"of body {part['body']!r} along {part['plane'][0]} (its outward "
+                             f"normal -{part['plane'][0]}): make {m['body']!r} the slave")
+        master = mesh_bodies.body_faces(self.conn, self.coords, self.body_of,
+                                        names.index(m["body"]), AXES[m["plane"][0]],
+                                        float(m["plane"][1]))
+        if self.comm.tompi4py().allreduce(master.shape[0]) == 0:
+            raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face on "
+                             f"the plane {m['plane'][0]} = {m['plane'][1]}")
+        pair = ContactPair(self.dm, self.coords, self.parts[name], master, axis, -1,
+                           self.clamped)
+        if pair.n_slave == 0:
+            raise SceneError(f"contact pair {name!r}: the master faces of {m['body']!r} never "
+                             f"face the slave faces of {part['body']!r}")
+        return pair
 
     def _contact_diagonal(self):
         """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
@@ -183,16 +253,23 @@ class Discretisation:
         self.has_contact_part = bool(cfaces)
         self.normal = foundation_normal(sc)
         self.cs = self.frame = None              # frame: contact/fem/frame.py (tilted foundation)
+        self.pair = None                         # a contact pair of two bodies (pairs.py)
         if not self.has_contact_part:
             return
         con = sc.get("contact", {})
         fd = con.get("foundation", {})
         template = dm.createGlobalVec()
         rstart = template.getOwnershipRange()[0]
+        gap, covered = con.get("gap"), None
+        pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
+        if pairs:
+            self.pair = self._pair(*pairs[0])
+            self.normal = list(self.pair.normal)
+            gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template, normal=self.normal,
-                             point=fd.get("point", [0.0, 0.0, 0.0]), gap=con.get("gap"),
-                             roles=self.roles)
+                             point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
+                             roles=self.roles, covered=covered)
         template.destroy()
         if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
             self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])
@@ -247,6 +324,8 @@ class Discretisation:
             self.A.mult(self.u_D, Au)
             self.energy_shift = -0.5 * Au.dot(self.u_D) - self.b.dot(self.u_D)
             Au.destroy()
+        if self.pair is not None:                # u = Z u~: A~ = Z^T A Z, b~ = Z^T b (pairs.py)
+            self._pair_basis()
         self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
         zeros = np.zeros(len(self.clamped))
         for _, _, bg in self.load_groups:        # the eliminated rows carry no load
@@ -256,13 +335,32 @@ class Discretisation:
             self.load_groups[0][2].destroy()
             self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
 
+    def _pair_basis(self):
+        """A, b and the load groups in the contact pair's basis; a prescribed displacement's
+        relative part (n . Z^-1 u_D at the slave nodes) joins the gap."""
+        A = self.pair.transform_matrix(self.A)
+        self.A.destroy()
+        self.A = A
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        for v in {id(v): v for v in [self.b] + [bg for _, _, bg in self.load_groups]}.values():
+            self.pair.transform_load(v)
+        if self.u_D is not None:
+            rel, c = self.pair.from_displacement(self.u_D.copy()), self.cs.vec()
+            self.cs.gather(rel, c, 2)
+            self.cs.gap.axpy(1.0, c)
+            self.cs.has_gap = self.cs.gap.norm(PETSc.NormType.INFINITY) > 0.0
+            rel.destroy()
+            c.destroy()
+
     def to_frame(self, vec):
         """In place: a Vec in x, y, z -> the loops' basis (the same Vec without a frame)."""
         return self.frame.to_frame(vec) if self.frame is not None else vec
 
     def to_xyz(self, x):
         """x (the loops' basis) in x, y, z components: x itself without a contact frame,
-        else a new Vec (contact/fem/frame.py)."""
+        else a new Vec (contact/fem/frame.py; a contact pair's Z x: pairs.py)."""
+        if self.pair is not None:
+            return self.pair.to_displacement(x)
         return self.frame.to_xyz(x.copy()) if self.frame is not None else x
 
     def displacement(self, x):
@@ -271,6 +369,9 @@ class Discretisation:
             return self.to_xyz(x)
         u = x.duplicate()
         u.waxpy(1.0, x, self.u_D)
+        if self.pair is not None:
+            self.pair.to_displacement(x, u)
+            u.axpy(1.0, self.u_D)
         return self.frame.to_xyz(u) if self.frame is not None else u
 
     def xyz_rows(self, vec):

@@ -38,6 +38,7 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
+from contact.mesh.bodies import create_mesh as create_bodies
 from contact.mesh.grading import local_coordinates, place
 from contact.mesh.refine import refine as refine_serial
 
@@ -112,7 +113,9 @@ class MeshHierarchy:
             dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
         else:                  # -mesh_refine K: the file's mesh refined K times (levels)
             k, nd0 = up + max(refine, 0), nd
-            if self.kind == "gmsh":
+            if self.kind == "bodies":            # several boxes (mesh/bodies.py)
+                dm = create_bodies(comm, m["bodies"], nd)
+            elif self.kind == "gmsh":
                 from contact.mesh import gmshio  # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
                 dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
@@ -171,7 +174,8 @@ class MeshHierarchy:
         nd0, where = self.levels[0].nd, " in parallel" if self.comm.getSize() > 1 else ""
         if self.kind != "box":
             r = self.refinements - int(self.quadratic)
-            return (f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
+            return ((f"{self.kind} mesh read" if self.kind != "bodies" else "bodies built")
+                    + f" on rank 0, distributed ({self.partitioner})"
                     + (f", refined {r} time{'s' if r > 1 else ''}{where} (-mesh_refine:"
                        f" levels Nd = {', '.join(str(lv.nd) for lv in self.levels)})"
                        if r else "")

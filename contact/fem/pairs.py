@@ -1,0 +1,172 @@
+"""A contact pair of two deformable bodies, condensed to the one-body problem by a change of
+basis (dual mortar, fem/mortar.py).
+
+The dual mortar couples the slave surface's nodes j to the master's nodes l through the
+diagonal D (D_j = int N_j: the lumped weight of contactset.py) and M; the relative
+displacement at slave node j is the mortar projection
+    g_j(u) = u_j - sum_l P_jl u_l,     P = D^-1 M  (each row normalised to sum 1)
+and the multiplier lambda_j acts on the slave node with D_j and on the master nodes with
+-M_jl. The change of basis u = Z u~, Z = I + E, E the rows of P (slave row, master column,
+in each of the 3 components), makes the slave unknowns the relative displacements
+(u~_j = g_j(u)) and leaves every other unknown as it was; with A~ = Z^T A Z and b~ = Z^T b,
+the slave rows of A~ u~ - b~ are D lambda and the master rows hold R_m + P^T R_s, the
+multiplier's reaction on the master eliminated node by node (the condensation of Popp, Gee
+& Wall 2009, section 4, and of Hueber & Wohlmuth 2005). So the contact set on the slave
+nodes, with the gap n . (X_j - sum_l P_jl X_l), is that of a body on a rigid foundation:
+the Newton iteration, its globalisation, its residuals and the paper's loops run unchanged
+on (A~, b~). Energies are the same in both bases (u~ . A~ u~ = u . A u, b~ . u~ = b . u);
+the displacement is Z u~ (`to_displacement`).
+
+Z^-1 = I - E (E E = 0: a master node is no slave node), used for the rigid-body
+near-nullspace of A~ (GAMG). Rows and columns of clamped dofs are left out of E: a clamped
+slave component stays u~ = u (0), a clamped master component contributes its 0.
+
+Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
+mesh) are gathered on every rank, every rank computes the same mortar matrices, and each
+assembles its own rows of Z.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from contact.fem.mortar import mortar_matrices
+
+#: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
+#: (a sliver of master over it: the dual basis's row there is ill-conditioned)
+MIN_COVER = 1e-3
+
+
+def _gathered(comm, gidx, coords, faces):
+    """(x (n, 3), faces (nf, 4) into x, global vertex numbers (n,)) of a surface whose
+    local faces are `faces`, on every rank."""
+    mine = (gidx[faces], coords[faces])
+    parts = comm.tompi4py().allgather(mine)
+    g = np.concatenate([p[0].reshape(-1, 4) for p in parts]).astype(np.int64)
+    X = np.concatenate([p[1].reshape(-1, 3) for p in parts])
+    ids, first, inv = np.unique(g.ravel(), return_index=True, return_inverse=True)
+    return X[first], inv.reshape(-1, 4), ids
+
+
+class ContactPair:
+    """The change of basis Z = I + E of a slave and a master surface (module docstring).
+
+    dm, coords: the mesh; slave, master: local faces (nf, 4), counter-clockwise about their
+    body's outward normal; axis, sign: the slave's outward normal is sign e_axis; clamped:
+    global clamped rows."""
+
+    def __init__(self, dm, coords, slave, master, axis, sign, clamped):
+        comm = dm.getComm()
+        self.comm = comm
+        gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
+        xs, fs, sid = _gathered(comm, gidx, coords, slave)
+        xm, fm, mid = _gathered(comm, gidx, coords, master)
+        mt = mortar_matrices(xs, fs, xm, fm)
+        rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
+        ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
+        keep = ok[mt.rows]
+        r, c, v = mt.rows[keep], mt.cols[keep], mt.values[keep] / rowsum[mt.rows[keep]]
+        #: the normal n into the slave body (the foundation's normal of a one-body scene)
+        self.normal = np.zeros(3)
+        self.normal[axis] = -float(sign)
+        self.axis = axis
+        #: per slave node (global vertex number): its gap n . (X_j - sum_l P_jl X_l)
+        proj = np.zeros((xs.shape[0], 3))
+        np.add.at(proj, r, v[:, None] * xm[c])
+        self.slave_ids = sid
+        self.covered = ok
+        self.gaps = (xs - proj) @ self.normal
+        self.n_slave = int(ok.sum())
+        self.Z = self._assemble(dm, sid[r], mid[c], v, clamped)
+
+    def _assemble(self, dm, srow, mcol, val, clamped):
+        """Z = I + E as an AIJ Mat (block size 3): rows of the owned slave vertices."""
+        g = dm.createGlobalVec()
+        lo, hi = g.getOwnershipRange()
+        N = g.getSize()
+        g.destroy()
+        rows = (3 * srow[:, None] + np.arange(3)).ravel()
+        cols = (3 * mcol[:, None] + np.arange(3)).ravel()
+        vals = np.repeat(val, 3)
+        held = np.zeros(hi - lo, dtype=bool)
+        cl = np.asarray(clamped, dtype=np.int64)
+        held[cl[(cl >= lo) & (cl < hi)] - lo] = True
+        mine = (rows >= lo) & (rows < hi)
+        rows, cols, vals = rows[mine], cols[mine], vals[mine]
+        heldcol = np.isin(cols, cl)
+        keep = ~held[rows - lo] & ~heldcol
+        rows, cols, vals = rows[keep], cols[keep], vals[keep]
+        # CSR of the owned rows: the identity and E's entries (columns sorted per row)
+        allr = np.concatenate([np.arange(lo, hi), rows])
+        allc = np.concatenate([np.arange(lo, hi), cols])
+        allv = np.concatenate([np.ones(hi - lo), vals])
+        order = np.lexsort((allc, allr))
+        allr, allc, allv = allr[order], allc[order], allv[order]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(allr - lo, minlength=hi - lo))])
+        Z = PETSc.Mat().createAIJ(size=((hi - lo, N), (hi - lo, N)), bsize=3,
+                                  csr=(indptr.astype(PETSc.IntType),
+                                       allc.astype(PETSc.IntType), allv), comm=self.comm)
+        Z.assemble()
+        return Z
+
+    def transform_matrix(self, A):
+        """A~ = Z^T A Z (a new Mat; A is left as it is)."""
+        return A.ptap(self.Z)          # (petsc_compat: ptap on 3.18 and 3.26)
+
+    def transform_load(self, b):
+        """In place: b <- Z^T b."""
+        t = b.duplicate()
+        self.Z.multTranspose(b, t)
+        t.copy(b)
+        t.destroy()
+        return b
+
+    def to_displacement(self, xt, out=None):
+        """u = Z u~ (a new Vec unless `out`)."""
+        out = xt.duplicate() if out is None else out
+        self.Z.mult(xt, out)
+        return out
+
+    def from_displacement(self, u):
+        """In place: u <- Z^-1 u = u - E u."""
+        t = u.duplicate()
+        self.Z.mult(u, t)                   # u + E u
+        t.axpy(-1.0, u)                     # E u
+        u.axpy(-1.0, t)
+        t.destroy()
+        return u
+
+    def vertex_gaps(self, nv_owned, rstart_block):
+        """(gap per owned vertex, covered mask per owned vertex): the pair's gaps at the
+        owned slave vertices (0 elsewhere), and which slave vertices the master covers."""
+        gap = np.zeros(nv_owned)
+        cov = np.zeros(nv_owned, dtype=bool)
+        loc = self.slave_ids - rstart_block
+        mine = (loc >= 0) & (loc < nv_owned)
+        gap[loc[mine]] = self.gaps[mine]
+        cov[loc[mine]] = self.covered[mine]
+        return gap, cov
+
+    def rigid_body_nullspace(self, coordinates, body_masks):
+        """The near-nullspace of A~: each body's six rigid modes (body_masks: a Vec per
+        body, 1 on its dofs), in u~ (Z^-1), orthonormalised."""
+        base = PETSc.NullSpace().createRigidBody(coordinates)
+        vecs = []
+        for mask in body_masks:
+            for r in base.getVecs():
+                v = r.copy()
+                v.pointwiseMult(v, mask)
+                vecs.append(self.from_displacement(v))
+        base.destroy()
+        out = []
+        for v in vecs:                      # modified Gram-Schmidt
+            for q in out:
+                v.axpy(-v.dot(q), q)
+            nrm = v.norm()
+            if nrm > 1e-10:
+                v.scale(1.0 / nrm)
+                out.append(v)
+            else:
+                v.destroy()
+        ns = PETSc.NullSpace().create(vectors=out, comm=coordinates.getComm())
+        for v in out:
+            v.destroy()
+        return ns

@@ -1,0 +1,81 @@
+"""The mesh of a scene with several bodies (`bodies:`): boxes of hexahedra, one DMPlex.
+
+Each body is a box [lower, upper] of cells (nx, ny, nz) times the scene's nd; the bodies are
+the disconnected components of one uninterpolated DMPlex built on rank 0 (like a gmsh
+file: `mesh.distribute` spreads it), so one displacement Vec, one matrix and one solver
+hold them all. Boxes may touch (a punch on a plate) but not overlap; their vertices are
+never shared, so the meshes of two bodies are independent (non-matching where they meet).
+
+A cell's body is the box its centre lies in (`cell_bodies`): the same on every level and
+rank, with no label to carry through distribution. A boundary part of a body (`body_faces`)
+is the faces on its plane of that body's cells, oriented counter-clockwise about the
+body's outward normal (fem/mortar.py's convention).
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from contact.mesh.plex import HEX_FACES, HEX_REF, MeshError
+
+
+def box_cells(cells, lower, upper):
+    """(conn (nc, 8) in HEX_REF order, coords (nv, 3)) of a box of cells (nx, ny, nz)."""
+    n = [int(c) for c in cells]
+    axes = [np.linspace(lo, hi, k + 1) for lo, hi, k in zip(lower, upper, n)]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    vid = np.arange(X.shape[0]).reshape([k + 1 for k in n])
+    i, j, k = (a.ravel() for a in np.meshgrid(*[np.arange(k) for k in n], indexing="ij"))
+    corner = ((HEX_REF + 1) // 2).astype(np.intp)                  # 0 / 1 per direction
+    conn = vid[i[:, None] + corner[:, 0], j[:, None] + corner[:, 1], k[:, None] + corner[:, 2]]
+    return conn, X
+
+
+def create_mesh(comm, bodies, nd=1):
+    """Serial-on-rank-0 DMPlex of the bodies' boxes ({name: {lower, upper, cells}}, cells
+    times nd), their vertices apart."""
+    conns, coords, nv = [], [], 0
+    if comm.getRank() == 0:
+        for name, b in bodies.items():
+            cells = [int(c) * int(nd) for c in b["cells"]]
+            if min(cells) < 1:
+                raise MeshError(f"body {name!r}: cells must be >= 1, got {b['cells']}")
+            conn, X = box_cells(cells, b["lower"], b["upper"])
+            conns.append(conn + nv)
+            coords.append(X)
+            nv += X.shape[0]
+    conn = np.concatenate(conns) if conns else np.zeros((0, 8))
+    X = np.concatenate(coords) if coords else np.zeros((0, 3))
+    return PETSc.DMPlex().createFromCellList(3, np.asarray(conn, dtype=PETSc.IntType),
+                                             np.asarray(X, dtype=PETSc.RealType),
+                                             interpolate=False, comm=comm)
+
+
+def cell_bodies(bodies, conn, coords):
+    """The index (in the scene's order) of each local cell's body: the box its centre is in."""
+    centre = coords[conn].mean(axis=1)
+    out = np.full(conn.shape[0], -1, dtype=np.intp)
+    for i, b in enumerate(bodies.values()):
+        lo, hi = np.asarray(b["lower"], float), np.asarray(b["upper"], float)
+        out[np.all((centre > lo) & (centre < hi), axis=1)] = i
+    if np.any(out < 0):
+        raise MeshError("a cell lies in no body's box (cell_bodies)")
+    return out
+
+
+def body_faces(conn, coords, body_of, body, axis, value, tol=1e-9):
+    """(nf, 4) local faces on the plane x[axis] = value of the cells of body index `body`,
+    each counter-clockwise about the body's outward normal."""
+    cells = np.flatnonzero(body_of == body)
+    on = np.abs(coords[:, axis] - value) <= tol
+    cells = cells[np.count_nonzero(on[conn[cells]], axis=1) >= 4]
+    if cells.size == 0:
+        return np.zeros((0, 4), dtype=np.intp)
+    faces = conn[cells][:, HEX_FACES]                                  # (nc, 6, 4)
+    keep = np.all(on[faces], axis=2)
+    owner = np.broadcast_to(cells[:, None], keep.shape)[keep]
+    faces = faces[keep]
+    X = coords[faces]
+    n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])[:, axis]        # right-hand normal
+    out = np.sign(value - coords[conn[owner]].mean(axis=1)[:, axis])  # outward: + or -
+    flip = n * out < 0.0
+    faces[flip] = faces[flip][:, ::-1]
+    return faces

@@ -1,0 +1,110 @@
+"""Scenes with several bodies: the `bodies:` section, checked and expanded (scene.validate).
+
+    bodies:
+      base:  {lower: [0, 0, 0], upper: [1, 1, 0.5], cells: [5, 5, 3],
+              material: {young: 1.0, poisson: 0.3}}
+      punch: {lower: [0, 0, 0.5], upper: [1, 1, 1], cells: [7, 7, 4],
+              material: {young: 1.0, poisson: 0.3}}
+    boundary:
+      bottom:    {type: dirichlet, body: base, plane: [z, 0], components: [z]}
+      press:     {type: traction, body: punch, plane: [z, 1], traction: [0, 0, -0.1]}
+      interface: {type: contact, body: punch, plane: [z, 0.5],
+                  master: {body: base}}          # the master face: base's plane z = 0.5
+
+Each body is a box of hexahedra (cells times the scene's nd, -nd) with its own material;
+the meshes of two bodies are independent (mesh/bodies.py). A boundary part names its body
+(`body:`; without it a plane part takes the faces of every body on it: a symmetry plane).
+A contact part with `master:` is a pair: its faces are the slave side, the master's are
+the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
+coupled by the dual mortar (fem/pairs.py). A contact part without `master:` presses its
+body on the rigid foundation as in a one-body scene. This version: q1, one pair, slave faces
+normal to a coordinate axis, the mesh on one level (no -mesh_refine: the multigrid and the
+coarse-to-fine start do not know the coupling yet).
+"""
+from contact import scene as _scene     # (read when called: scene.py imports this first)
+
+BODY_KEYS = ("lower", "upper", "cells", "material")
+
+
+def expand(scene):
+    """Check `bodies:` and set the mesh (type bodies) and material (the first body's: what
+    a one-body reader of the scene sees) sections from it; idempotent."""
+    SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
+    bodies = scene["bodies"]
+    if not isinstance(bodies, dict) or not bodies:
+        raise SceneError(f"bodies must map body names to boxes, got {shown(bodies)}")
+    mesh = scene.get("mesh", {"type": "bodies"})
+    if not isinstance(mesh, dict) or mesh.get("type") != "bodies":
+        raise SceneError("a scene with bodies: has no mesh section (each body is its own box)")
+    boxes = []
+    for name, b in bodies.items():
+        if not isinstance(name, str):
+            raise SceneError(f"body names must be strings, got {shown(name)}")
+        where = f"body {name!r}"
+        if not isinstance(b, dict) or any(k not in BODY_KEYS for k in b):
+            raise SceneError(f"{where} must be a mapping of {', '.join(BODY_KEYS)}, got "
+                             f"{shown(b)}")
+        lo = numbers(b.get("lower"), 3, f"{where}: lower")
+        hi = numbers(b.get("upper"), 3, f"{where}: upper")
+        if not all(h > lo_ for lo_, h in zip(lo, hi)):
+            raise SceneError(f"{where}: upper must exceed lower in every direction")
+        cells = b.get("cells")
+        if not (isinstance(cells, list) and len(cells) == 3 and all(
+                isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cells)):
+            raise SceneError(f"{where}: cells must be 3 integers >= 1, got {shown(cells)}")
+        if not isinstance(b.get("material"), dict):
+            raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
+        _scene._check_keys(b["material"], "material", f"{where}: material")
+        _scene._material(b["material"])
+        for other, (olo, ohi) in boxes:
+            if all(max(a, c) < min(bb, d) for a, bb, c, d in zip(lo, hi, olo, ohi)):
+                raise SceneError(f"bodies {other!r} and {name!r} overlap")
+        boxes.append((name, (lo, hi)))
+    mesh.update(type="bodies", bodies=bodies)
+    mesh.setdefault("nd", 1)
+    el = mesh.setdefault("element", "q1")
+    if el not in ("auto", "q1"):
+        raise SceneError(f"a scene with several bodies has the q1 element (for now), got {el!r}")
+    mesh["element"] = "q1"
+    scene["mesh"] = mesh
+    first = next(iter(bodies.values()))["material"]
+    if scene.setdefault("material", dict(first)) != first:
+        raise SceneError("a scene with bodies: gives each body its material (a material "
+                         "section, -young and -poisson do not apply)")
+    if isinstance(scene.get("boundary"), dict):
+        check_parts(scene)
+
+
+def check_parts(scene):
+    """The parts' `body` and `master` keys: known bodies, one pair, a master on a contact
+    part only; SceneError naming the part."""
+    SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
+    bodies, pairs = scene["bodies"], 0
+    for name, part in scene["boundary"].items():
+        if not isinstance(part, dict) or not ("body" in part or "master" in part):
+            continue
+        if "body" in part and (not isinstance(part["body"], str) or part["body"] not in bodies):
+            raise SceneError(f"boundary part {name!r}: no body {shown(part['body'])} (the "
+                             f"bodies: {', '.join(bodies)})")
+        if "master" not in part:
+            continue
+        m = part["master"]
+        if part.get("type") != "contact" or "body" not in part:
+            raise SceneError(f"boundary part {name!r}: master belongs to a contact part "
+                             f"that names its body")
+        if not isinstance(m, dict) or set(m) - {"body", "plane"} or \
+                not isinstance(m.get("body"), str) or m["body"] not in bodies:
+            raise SceneError(f"boundary part {name!r}: master must be {{body: <one of "
+                             f"{', '.join(bodies)}>, plane: [x|y|z, value]}}, got {shown(m)}")
+        if m["body"] == part["body"]:
+            raise SceneError(f"boundary part {name!r}: the master is the slave's own body")
+        plane = m.setdefault("plane", part.get("plane"))
+        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
+            raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, value]")
+        numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
+        pairs += 1
+    if pairs > 1:
+        raise SceneError(f"{pairs} contact pairs: one contact part with a master (for now)")
+    if pairs and any(p.get("type") == "contact" and "master" not in p
+                     for p in scene["boundary"].values()):
+        raise SceneError("a contact pair and a rigid foundation in one scene: not yet")

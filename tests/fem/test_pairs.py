@@ -1,0 +1,158 @@
+"""Two bodies in contact (scene_bodies.py, mesh/bodies.py, fem/pairs.py), checked against
+closed forms (the contact patch test on non-matching meshes), against the rigid-foundation
+scene (a master 1e6 times stiffer), across rank counts, and for the bad scenes' messages.
+
+The patch test: a punch pressed by p on a base; with non-matching meshes at the interface
+(5 x 5 faces against 7 x 7, or a punch shifted so that no node meets a node) the dual
+mortar transmits a uniform pressure exactly: u is the linear uniaxial field of each body
+and the multiplier is p at every slave node, to rounding."""
+import copy
+import os
+
+import numpy as np
+import pytest
+from conftest import ROOT, gather, rel_err, solve, two_blocks
+
+from contact import scene as scenes
+from contact.analysis import stress
+from contact.scene import SceneError
+
+P = 0.01
+
+
+def exact(xyz, young, poisson):
+    """Uniaxial stress -p along z in both bodies: u_z = -p z / E (base), then the punch's
+    own strain from z = 0.5; u_x, u_y = nu p (x, y) / E (with the symmetry planes)."""
+    eb, ep = young
+    z = xyz[:, 2]
+    u = np.zeros_like(xyz)
+    u[:, 2] = np.where(z <= 0.5, -P * z / eb, -P * 0.5 / eb - P * (z - 0.5) / ep)
+    e = np.where(z <= 0.5 + 1e-12, eb, ep)
+    u[:, 0], u[:, 1] = poisson * P * xyz[:, 0] / e, poisson * P * xyz[:, 1] / e
+    return u
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_patch_nonmatching(comm, friction):
+    """5 x 5 base faces against 7 x 7 punch faces, symmetry planes: u linear and the
+    multiplier p at every slave node, to 1e-8 (F = 0.3: no relative slip, all stick)."""
+    sc = scenes.validate(two_blocks(friction))
+    pr = solve(sc, comm)
+    assert pr.converged
+    xyz, u = gather(pr)[:2]
+    # at the interface both bodies' nodes meet on z = 0.5: compare each body's own field
+    assert rel_err(u, exact(xyz, (1.0, 1.0), 0.3)) < 1e-8
+    lam = pr.cs.local_array(pr.l)
+    assert pr.comm.tompi4py().allreduce(lam.size) == 64      # the punch's 8 x 8 face nodes
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
+    assert abs(pr.normal_force() - P) < 1e-8 * P
+
+
+def test_patch_two_materials(comm):
+    """A base 3 times stiffer than the punch: their lateral strains differ, the frictionless
+    interface slides; u linear in each body (the nodes off the interface: on it the two
+    bodies' nodes may share a place), the multiplier p everywhere."""
+    sc = scenes.validate(two_blocks(young=(3.0, 1.0)))
+    pr = solve(sc, comm)
+    xyz, u = gather(pr)[:2]
+    off = np.abs(xyz[:, 2] - 0.5) > 1e-12
+    assert rel_err(u[off], exact(xyz, (3.0, 1.0), 0.3)[off]) < 1e-8
+    sig = stress.body_stress(pr)["cell"]                 # each body with its own material
+    assert np.abs(sig - [0.0, 0.0, -P, 0.0, 0.0, 0.0]).max(initial=0.0) < 1e-8 * P
+    lam = pr.cs.local_array(pr.l)
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
+    assert abs(pr.normal_force() - P) < 1e-8 * P
+
+
+def test_patch_shifted(comm):
+    """The punch [0.1, 0.9]^2 inside the base's top (no node meets a node; nu = 0, base
+    clamped): the base is loaded on part of its top, so its stress is not uniform, but the
+    transmitted force is p times the punch's area and the punch, 1e4 times softer,
+    is in uniaxial stress to the base's compliance."""
+    sc = scenes.validate(two_blocks(shifted=True, young=(1e4, 1.0), poisson=0.0))
+    pr = solve(sc, comm)
+    assert abs(pr.normal_force() - P * 0.64) < 1e-8 * P
+    lam = pr.cs.local_array(pr.l)
+    assert np.all(np.abs(lam - P) < 1e-3 * P)
+
+
+def test_patch_fails_without_the_mortar_projection(comm, monkeypatch):
+    """The patch test sees the coupling: with the master's motion left out of the relative
+    displacement (E = 0: the punch on a rigid plane) u is off by the base's compression."""
+    from contact.fem import pairs
+    real = pairs.ContactPair._assemble
+    monkeypatch.setattr(pairs.ContactPair, "_assemble",
+                        lambda self, dm, r, c, v, cl: real(self, dm, r, c, 0.0 * v, cl))
+    pr = solve(scenes.validate(two_blocks(young=(3.0, 1.0))), comm)
+    xyz, u = gather(pr)[:2]
+    off = np.abs(xyz[:, 2] - 0.5) > 1e-12
+    assert rel_err(u[off], exact(xyz, (3.0, 1.0), 0.3)[off]) > 0.1
+
+
+def punch_sheared(stiff_base, base_young=1e6):
+    """The punch [0,1]^2 x [0.5,1] pushed down and sideways on its top (u_D), F = 0.3: on
+    a base of E = 1e6 (stiff_base) or alone on the rigid plane z = 0.5."""
+    push = (0.002, 0.0, -0.01)
+    top = {"type": "dirichlet", "plane": ["z", 1.0], "displacement": list(push)}
+    if stiff_base:                               # (no base node meets a punch node)
+        return scenes.validate(two_blocks(friction=0.3, young=(base_young, 1.0), punch_cells=4,
+                                          base=((-0.1, -0.1), (1.1, 1.1)), push=push))
+    return scenes.validate({
+        "name": "punch", "mesh": {"type": "box", "lower": [0, 0, 0.5], "upper": [1, 1, 1],
+                                  "cells_per_nd": [4, 4, 3], "nd": 1, "element": "q1"},
+        "material": {"young": 1.0, "poisson": 0.3},
+        "boundary": {"top": top, "contact": {"type": "contact", "plane": ["z", 0.5]}},
+        "contact": {"friction": 0.3, "foundation": {"point": [0, 0, 0.5]}},
+        "solver": {"mode": "newton", "newton_rtol": 1e-12}})
+
+
+def test_stiff_master_is_the_rigid_foundation(comm):
+    """A punch sheared with friction on a base 1e6 times stiffer gives the rigid-foundation
+    answer of the same punch to 1e-5 (the punch's nodes, its stick and slip sets)."""
+    two = solve(punch_sheared(True), comm)
+    one = solve(punch_sheared(False), comm)
+    assert two.converged and one.converged
+    xyz2, u2 = gather(two)[:2]
+    xyz1, u1 = gather(one)[:2]
+    key = lambda X: [tuple(r) for r in np.round(X, 9)]               # noqa: E731
+    where = {k: i for i, k in enumerate(key(xyz2))}
+    a = np.arange(xyz1.shape[0])
+    b = np.array([where[k] for k in key(xyz1)])                  # the punch's nodes in two
+    assert rel_err(u2[b], u1[a]) < 1e-5
+    assert abs(two.normal_force() - one.normal_force()) < 1e-5 * abs(one.normal_force())
+    bottom = np.abs(xyz1[:, 2] - 0.5) < 1e-12        # a case with stick and slip nodes
+    slip = np.abs(u1[bottom, 0]) > 1e-6
+    assert slip.any() and not slip.all()
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda s: s["boundary"]["interface"].update(master={"body": "nope"}), "master must be"),
+    (lambda s: s["boundary"]["press"].update(body="lid"), "no body 'lid'"),
+    (lambda s: s["boundary"]["interface"]["master"].update(plane=["z", 0.25]),
+     "has no cell face on the plane z = 0.25"),
+    (lambda s: s["bodies"]["punch"].update(lower=[0, 0, 0.4]), "overlap"),
+    (lambda s: s.update(mesh={"type": "box"}), "has no mesh section"),
+    (lambda s: s.update(material={"young": 2.0, "poisson": 0.3}), "gives each body"),
+    (lambda s: s["boundary"]["interface"].update(master={"body": "punch"}), "own body"),
+    (lambda s: s["boundary"].update(interface={
+        "type": "contact", "body": "base", "plane": ["z", 0.5], "master": {"body": "punch"}}),
+     "must be the lower side"),
+])
+def test_bad_pairings(comm, change, words):
+    """One line naming the problem."""
+    sc = two_blocks()
+    change(sc)
+    with pytest.raises(SceneError, match=words.replace("(", r"\(")):
+        solve(scenes.validate(copy.deepcopy(sc)), comm)
+
+
+def test_shipped_punch_on_plate(comm):
+    """runs/scenes/punch_on_plate.yaml (examples are tests): converges, presses (N > 0),
+    and its friction force opposes the push, below the Coulomb bound F N."""
+    sc = scenes.validate(scenes.load(os.path.join(ROOT, "runs", "scenes",
+                                                  "punch_on_plate.yaml")))
+    pr = solve(sc, comm)
+    assert pr.converged and pr.normal_force() > 0.0
+    cr = stress.summary(pr)["contact_result"]
+    assert cr["force"][0] < 0.0 < cr["tangential"] < 0.3 * cr["normal"]
+    assert cr["area"]["stick"] > 0.0 and cr["area"]["slip"] > 0.0
