@@ -57,7 +57,9 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
         Field("cell_error_indicator", "cells/error_indicator", 1, "Cell",
               help="||u_h - P u_2h||_a on the cell: where the last refinement changed the "
                    "solution, i.e. where the error lives (contact/analysis/estimate.py); NaN "
-                   "where there is no coarse level (one mesh level, load increments)"))
+                   "where there is no coarse level (one mesh level, load increments)"),
+        Field("body", "cells/body", 1, "Cell", help="the cell's body: its place in the "
+              "scene's bodies: (0 in a one-body scene; float64 as status)"))
 #: the contact nodes' fields (stress.contact_state)
 CONTACT = (Field("pressure", "contact/pressure", 1, "Node",
                  help="g = -sigma_nu >= 0, the loops' multiplier l"),
@@ -232,16 +234,17 @@ def _view_int(viewer, path, values, comm, bs=1):
     _view(viewer, path, iset)
 
 
-def _body_values(body, u, indicator=None):
+def _body_values(body, u, indicator=None, body_of=None):
     """Owned node / local cell arrays of the BODY fields (indicator: the local cells'
-    error indicator, or None: NaN)."""
+    error indicator, or None: NaN; body_of: each local cell's body, None: one body)."""
     un = u.getArray(readonly=True).reshape(-1, 3)
     nc = body["cell"].shape[0]
     return {"displacement": un, "displacement_magnitude": np.linalg.norm(un, axis=1),
             "stress": body["nodal"], "von_mises": body["nodal_von_mises"],
             "cell_stress": body["cell"], "cell_von_mises": body["cell_von_mises"],
             "cell_pressure": -body["cell"][:, :3].sum(axis=1) / 3.0,
-            "cell_error_indicator": np.full(nc, np.nan) if indicator is None else indicator}
+            "cell_error_indicator": np.full(nc, np.nan) if indicator is None else indicator,
+            "body": np.zeros(nc) if body_of is None else body_of.astype(float)}
 
 
 def write_hdf5(path, problem, layout, written):
@@ -276,7 +279,7 @@ def write_hdf5(path, problem, layout, written):
             if u is not None:
                 ind = problem.error_indicator[0] if final and problem.error_indicator \
                     is not None else None
-                vals = _body_values(body, u, ind)
+                vals = _body_values(body, u, ind, problem.disc.body_of)
                 for f in BODY:
                     order = L.nodes if f.center == "Node" else L.cells
                     src = u if f.name == "displacement" else order.source_vec(vals[f.name],

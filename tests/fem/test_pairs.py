@@ -15,6 +15,7 @@ from conftest import ROOT, gather, rel_err, solve, two_blocks
 
 from contact import scene as scenes
 from contact.analysis import stress
+from contact.solvers import residuals as res
 from contact.scene import SceneError
 
 P = 0.01
@@ -46,6 +47,21 @@ def test_patch_nonmatching(comm, friction):
     assert pr.comm.tompi4py().allreduce(lam.size) == 64      # the punch's 8 x 8 face nodes
     assert np.all(np.abs(lam - P) < 1e-8 * P)
     assert abs(pr.normal_force() - P) < 1e-8 * P
+
+
+@pytest.mark.parametrize("mode", ["faithful", "fast"])
+def test_the_papers_loops_on_a_pair(comm, mode):
+    """-solver_mode faithful (the paper's three loops) and fast (SSN) on the shipped pair
+    (the same change of basis, the loops unchanged): the default's energy and forces to
+    their tolerances."""
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "punch_on_plate.yaml"))
+    ref = solve(scenes.validate(copy.deepcopy(sc)), comm)
+    sc["solver"] = {"mode": mode}
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged and pr.solver_mode == mode
+    e, e0 = (res.energy(p) for p in (pr, ref))
+    assert abs(e - e0) < 1e-7 * abs(e0)
+    assert abs(pr.normal_force() - ref.normal_force()) < 1e-5 * ref.normal_force()
 
 
 def test_patch_two_materials(comm):

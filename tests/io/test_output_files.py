@@ -43,10 +43,11 @@ def _contact(outdir, ranks, *extra):
     return str(outdir)
 
 
-#: the runs: the paper's beam (static), and a quasi-static one (block_shear: 4 load
-#: increments, friction-held, press then shear)
+#: the runs: the paper's beam (static), a quasi-static one (block_shear: 4 load
+#: increments, friction-held, press then shear), and two bodies (punch_on_plate)
 SCENES = {"static": (), "quasi": ("-scene", os.path.join(ROOT, "runs", "scenes",
-                                                            "block_shear.yaml"))}
+                                                            "block_shear.yaml")),
+          "pair": ("-scene", os.path.join(ROOT, "runs", "scenes", "punch_on_plate.yaml"))}
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +186,7 @@ def test_two_ranks_write_the_one_rank_file(runs, scene):
     for name, a in one.items():
         b = two[name]
         assert (b.shape, b.dtype) == (a.shape, a.dtype), name
-        if name.endswith(("/coordinates", "/topology", "/status", "/load_factor")) or \
+        if name.endswith(("/coordinates", "/topology", "/status", "/load_factor", "/body")) or \
                 a.dtype.kind in "iu":
             assert np.array_equal(a, b), name
         elif np.isnan(a).all():              # the error indicator without a coarse level
@@ -196,6 +197,8 @@ def test_two_ranks_write_the_one_rank_file(runs, scene):
             assert np.abs(b - a).max() <= 1e-10 * scale, name
     status = one["/contact/status"]
     assert {1, 2} <= set(np.unique(status))                  # stick and slip both present
+    bodies = {"pair": {0.0, 1.0}}.get(scene, {0.0})            # both bodies in one file
+    assert set(np.unique(one["/cells/body"])) == bodies
 
 
 def test_readme_lists_every_dataset():
