@@ -28,9 +28,46 @@ def check(disc):
     free, so the foundation must hold the body (the Newton iteration's first step then
     closes every contact node: from an open gap nothing else would hold it)."""
     check_prescribed_on_contact(disc)
-    if getattr(disc, "pair", None) is not None:   # two bodies: not a rigid foundation's checks
-        return None, True
+    if disc.bodies is not None:                   # several bodies: each its own check
+        return None, check_bodies(disc)
     return check_rigid_motion(disc, options.get("statics_check"))
+
+
+def check_bodies(disc):
+    """SceneError when a body's dirichlet and symmetry parts and its contact pair (the
+    normal direction at the pair's slave nodes, the other body taken as rigid; the
+    tangential ones when F > 0) leave one of its rigid-body motions free. Returns whether a
+    body needs the pair to be held (the Newton iteration's first step then closes every
+    slave node)."""
+    rstart = disc.coordinates.getOwnershipRange()[0]
+    rows = np.asarray(disc.clamped_xyz, dtype=np.int64)
+    together = fem.free_rigid_modes(disc.coordinates, rows)[0]   # all bodies as one
+    if together:
+        raise SceneError(f"the bodies together are held by nothing in {', '.join(together)} "
+                         f"(their dirichlet and symmetry parts): no equilibrium; support one")
+    pair = disc.pair_bodies or ()
+    needs_pair = False
+    for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
+        m = mask.getArray(readonly=True)
+        mine = rows[m[rows - rstart] > 0.5] if rows.size else rows
+        mask.destroy()
+        own = fem.free_rigid_modes(disc.coordinates, mine)
+        if not own[0]:
+            continue
+        if name not in pair:
+            raise SceneError(f"body {name!r} is held by nothing in {', '.join(own[0])}: "
+                             f"add a dirichlet or symmetry part, or a contact pair")
+        needs_pair = True
+        free, Q, _ = fem.free_rigid_modes(disc.coordinates, mine, disc.cs.coordinates,
+                                          disc.normal)
+        if free and not (fem.tangential_modes(Q, disc.normal) and disc.cs.has_friction):
+            raise SceneError(f"body {name!r}: its dirichlet and symmetry parts and the contact "
+                             f"pair leave rigid-body motion free ({', '.join(free)}; the "
+                             f"pair holds the normal direction"
+                             + (", friction could hold the others, but F = 0)"
+                                if fem.tangential_modes(Q, disc.normal) else ")")
+                             + ": no unique solution")
+    return needs_pair
 
 
 def check_prescribed_on_contact(disc):

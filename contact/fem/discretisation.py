@@ -154,7 +154,7 @@ class Discretisation:
                                                   self.pair is None)
         if self.pair is not None:                # each body's rigid modes, in the pair's basis
             self.nullspace = self.pair.rigid_body_nullspace(self.coordinates,
-                                                            self._body_masks())
+                                                            self.body_masks())
             self.A.setNearNullSpace(self.nullspace)
         self.n_dofs = self.A.getSize()[0]
 
@@ -173,7 +173,7 @@ class Discretisation:
                        for b in self.bodies.values()])
         return lm[self.body_of, 0], lm[self.body_of, 1]
 
-    def _body_masks(self):
+    def body_masks(self):
         """A Vec per body, 1 on its dofs."""
         out = []
         for i in range(len(self.bodies)):
@@ -254,6 +254,7 @@ class Discretisation:
         self.normal = foundation_normal(sc)
         self.cs = self.frame = None              # frame: contact/fem/frame.py (tilted foundation)
         self.pair = None                         # a contact pair of two bodies (pairs.py)
+        self.pair_bodies = None                  # its (slave, master) body names
         if not self.has_contact_part:
             return
         con = sc.get("contact", {})
@@ -264,6 +265,7 @@ class Discretisation:
         pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
         if pairs:
             self.pair = self._pair(*pairs[0])
+            self.pair_bodies = (pairs[0][1]["body"], pairs[0][1]["master"]["body"])
             self.normal = list(self.pair.normal)
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,

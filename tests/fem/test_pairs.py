@@ -150,6 +150,15 @@ def test_stiff_master_is_the_rigid_foundation(comm):
     (lambda s: s.update(mesh={"type": "box"}), "has no mesh section"),
     (lambda s: s.update(material={"young": 2.0, "poisson": 0.3}), "gives each body"),
     (lambda s: s["boundary"]["interface"].update(master={"body": "punch"}), "own body"),
+    (lambda s: s["boundary"].pop("bottom"), "the bodies together are held by nothing in translation z"),
+    (lambda s: s["boundary"].update(sym_x={"type": "symmetry", "body": "base",
+                                           "plane": ["x", 0.0]}),
+     "body 'punch': its dirichlet and symmetry parts and the contact pair leave rigid-body "
+     "motion free .translation x; the pair holds the normal direction, friction could hold the others, "
+     "but F = 0"),
+    (lambda s: s["bodies"].update(lid={"lower": [0, 0, 2], "upper": [1, 1, 3], "cells": [1, 1, 1],
+                                       "material": {"young": 1.0, "poisson": 0.3}}),
+     "body 'lid' is held by nothing in"),
     (lambda s: s["boundary"].update(interface={
         "type": "contact", "body": "base", "plane": ["z", 0.5], "master": {"body": "punch"}}),
      "must be the lower side"),
