@@ -139,7 +139,7 @@ class ContactProblem:
         if levels > below:
             note = (f"coarse-to-fine levels beyond {below} (the mesh hierarchy has "
                     f"{below} below Nd = {self.nd}: "
-                    + ("Nd has no more factors of 2)" if h.kind == "box"
+                    + ("Nd has no more factors of 2)" if h.kind in ("box", "bodies")
                        else "a mesh file is one level)"))
             if note not in self.skipped:
                 self.skipped.append(note)

@@ -120,9 +120,6 @@ class Discretisation:
         self.bodies = m["bodies"] if m["type"] == "bodies" else None
         self.body_of = None if self.bodies is None else \
             mesh_bodies.cell_bodies(self.bodies, conn, coords)
-        if self.bodies is not None and len(self.hierarchy.levels) > 1:
-            raise SceneError("a scene with bodies: runs on one mesh level for now (no "
-                             "-mesh_refine, -c2f_levels or -error_estimate)")
         self.element = element_of(sc)
         #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)

@@ -145,6 +145,14 @@ class ContactPair:
         cov[loc[mine]] = self.covered[mine]
         return gap, cov
 
+    def from_displacement_rows(self, P):
+        """Z^-1 P = 2 P - Z P (a new Mat): an interpolation into x, y, z turned into this
+        basis (the multigrid's finest one, multigrid.py)."""
+        ZP = self.Z.matMult(P)
+        ZP.scale(-1.0)
+        ZP.axpy(2.0, P, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        return ZP
+
     def rigid_body_nullspace(self, coordinates, body_masks):
         """The near-nullspace of A~: each body's six rigid modes (body_masks: a Vec per
         body, 1 on its dofs), in u~ (Z^-1), orthonormalised."""

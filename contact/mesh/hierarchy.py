@@ -105,17 +105,17 @@ class MeshHierarchy:
         refine, dmplex = options.get("mesh_refine"), options.get("mesh_refine_dmplex")
         if refine < -1:
             raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
-        if self.kind == "box":
-            per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])]
+        if self.kind in ("box", "bodies"):       # bodies: boxes of cells x Nd (bodies.py)
+            per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])] if self.kind == "box" \
+                else [sum(int(np.prod(b["cells"])) for b in m["bodies"].values()), 1, 1]
             k = refinements(nd << up, per, comm.getSize(), refine + up if refine >= 0 else -1,
                             max(c2f_levels, 0) + up)
             nd0 = (nd << up) >> k
-            dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
+            dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"]) \
+                if self.kind == "box" else create_bodies(comm, m["bodies"], nd0)
         else:                  # -mesh_refine K: the file's mesh refined K times (levels)
             k, nd0 = up + max(refine, 0), nd
-            if self.kind == "bodies":            # several boxes (mesh/bodies.py)
-                dm = create_bodies(comm, m["bodies"], nd)
-            elif self.kind == "gmsh":
+            if self.kind == "gmsh":
                 from contact.mesh import gmshio  # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
                 dm, self.physical_names = gmshio.read_gmsh(comm, m["file"], params)
@@ -172,17 +172,17 @@ class MeshHierarchy:
     def describe(self):
         """One line: how the mesh was made (for the console and summary.json)."""
         nd0, where = self.levels[0].nd, " in parallel" if self.comm.getSize() > 1 else ""
-        if self.kind != "box":
+        if self.kind not in ("box", "bodies"):
             r = self.refinements - int(self.quadratic)
-            return ((f"{self.kind} mesh read" if self.kind != "bodies" else "bodies built")
-                    + f" on rank 0, distributed ({self.partitioner})"
+            return (f"{self.kind} mesh read on rank 0, distributed ({self.partitioner})"
                     + (f", refined {r} time{'s' if r > 1 else ''}{where} (-mesh_refine:"
                        f" levels Nd = {', '.join(str(lv.nd) for lv in self.levels)})"
                        if r else "")
                     + (f", refined once more{where} (q2 nodes)" if self.quadratic else ""))
+        box = "box" if self.kind == "box" else "bodies"
         if self.refinements == 0:
-            return f"box built whole on rank 0 at Nd = {nd0}, distributed ({self.partitioner})"
-        return (f"box built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
+            return f"{box} built whole on rank 0 at Nd = {nd0}, distributed ({self.partitioner})"
+        return (f"{box} built on rank 0 at Nd = {nd0}, distributed ({self.partitioner}), "
                 f"refined {self.refinements} time{'s' if self.refinements > 1 else ''}{where}"
                 + (f" (q2: elements the cells at Nd = {self.levels[-2].nd}, nodes the "
                    f"vertices at Nd = {self.levels[-1].nd})" if self.quadratic else ""))

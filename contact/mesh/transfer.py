@@ -28,6 +28,8 @@ def prolong_displacement(P, coarse, fine, xc, xf):
     if u is not xc:
         u.destroy()
     fine.disc.to_frame(xf)
+    if fine.disc.pair is not None:                   # a contact pair's basis (pairs.py)
+        fine.disc.pair.from_displacement(xf)
     xf.setValues(fine.clamped, np.zeros(len(fine.clamped)))
     xf.assemble()
     return xf

@@ -5,7 +5,9 @@ P_j from level j - 1 to level j (hierarchy.prolongation), and Galerkin coarse op
 P^T K P, so the coarse levels see whatever the fine operator is: the stiffness A with its
 clamped rows eliminated, or the Newton Jacobian with its contact rows changed
 (contact/solvers/coulomb.py). The finest interpolation is turned into the problem's basis (T^T P
-with a contact frame, contact/fem/frame.py) and is zero on the clamped rows (a coarse
+with a contact frame, contact/fem/frame.py; Z^-1 P with a contact pair, fem/pairs.py, whose coarse
+levels keep x, y, z: the Galerkin operators see the pair through the finest one) and is
+zero on the clamped rows (a coarse
 correction never moves a clamped dof).
 
 Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
@@ -72,7 +74,7 @@ def blocked(scene, level_index, element):
     products), GPU Vecs, another preconditioner (-newton_pc_type gamg, ...) or its own
     Galerkin setting (-newton_pc_mg_galerkin)."""
     opts = PETSc.Options()
-    if (level_index == 0 or element != "q1"
+    if (level_index == 0 or element != "q1" or scene["mesh"]["type"] == "bodies"
             or options.solver_mode(scene) != "newton"
             or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
@@ -97,9 +99,11 @@ class Multigrid:
     scene's mesh.rotate or None) for a first coarse operator assembled on the level below
     (the module docstring; prepare); clamped_xyz: the clamped rows in x, y, z."""
 
-    def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None):
+    def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None,
+                 pair=None):
         self.hierarchy, self.level = hierarchy, level
         self.frame, self.clamped = frame, clamped
+        self.pair = pair                 # a contact pair's basis (fem/pairs.py), or None
         self._finest = None
         self._rediscretise = rediscretise
         self.coarse = self._free_c = None  # A_c (AIJ), and 0 at its clamped dofs, else 1
@@ -177,8 +181,9 @@ class Multigrid:
             last = self.level == len(self.hierarchy.levels) - 1
             P = self.hierarchy.take_prolongation(j) if last else \
                 self.hierarchy.prolongation(j)
-            if self.frame is not None:
-                Pf = self.frame.rotate_rows(P)
+            if self.frame is not None or self.pair is not None:
+                Pf = self.frame.rotate_rows(P) if self.pair is None else \
+                    self.pair.from_displacement_rows(P)
                 if last:
                     P.destroy()
             else:
@@ -299,7 +304,8 @@ def for_problem(disc, rediscretise=False):
     mat = disc.scene["material"]
     return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped,
                      (mat["young"], mat["poisson"], disc.clamped_xyz,
-                      disc.scene["mesh"].get("rotate")) if rediscretise else None)
+                      disc.scene["mesh"].get("rotate")) if rediscretise else None,
+                     pair=disc.pair)
 
 
 def configure(ksp, mg, default="gamg"):

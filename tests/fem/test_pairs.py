@@ -181,3 +181,32 @@ def test_shipped_punch_on_plate(comm):
     cr = stress.summary(pr)["contact_result"]
     assert cr["force"][0] < 0.0 < cr["tangential"] < 0.3 * cr["normal"]
     assert cr["area"]["stick"] > 0.0 and cr["area"]["slip"] > 0.0
+
+
+def test_multigrid_and_coarse_start_on_a_pair(comm):
+    """Refined levels (nd 4 from nd 1): the multigrid's finest interpolation in the pair's
+    basis (Z^-1 P, multigrid.py) and the coarse-to-fine start prolonged into it
+    (transfer.py): the patch test's exact answer on the fine level, from the coarse
+    levels' own exact answers; and the sheared punch the same with the multigrid as with
+    GAMG on one level."""
+    from contact import options
+    sc = two_blocks(young=(3.0, 1.0), base_cells=3, punch_cells=2)
+    sc["mesh"] = {"nd": 4}
+    with options.inserted({"mesh_refine": "2", "c2f_levels": "2"}):
+        pr = solve(scenes.validate(copy.deepcopy(sc)), comm)
+    assert pr.solvers.multigrid is not None and [r["nd"] for r in pr.coarse_runs] == [1, 2]
+    xyz, u = gather(pr)[:2]
+    off = np.abs(xyz[:, 2] - 0.5) > 1e-12
+    assert rel_err(u[off], exact(xyz, (3.0, 1.0), 0.3)[off]) < 1e-8
+    assert pr.iterations()["inner_total"] <= 2               # started from the answer
+    sheared = two_blocks(friction=0.3, punch_cells=2, base_cells=3, push=(0.002, 0.002, -0.004),
+                         base=((-0.1, -0.1), (1.2, 1.2)))      # no node meets another
+    sheared["mesh"] = {"nd": 2}
+    runs = []
+    for refine in ("1", "0"):
+        with options.inserted({"mesh_refine": refine, "c2f_levels": "0"}):
+            runs.append(solve(scenes.validate(copy.deepcopy(sheared)), comm))
+    assert runs[0].solvers.multigrid is not None and runs[1].solvers.multigrid is None
+    (x1, u1), (x0, u0) = (gather(r)[:2] for r in runs)
+    o1, o0 = (np.lexsort(np.round(x, 9).T) for x in (x1, x0))   # (refined: rounded places)
+    assert np.allclose(x1[o1], x0[o0]) and rel_err(u1[o1], u0[o0]) < 1e-8
