@@ -17,9 +17,8 @@ the meshes of two bodies are independent (mesh/bodies.py). A boundary part names
 A contact part with `master:` is a pair: its faces are the slave side, the master's are
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
 coupled by the dual mortar (fem/pairs.py). A contact part without `master:` presses its
-body on the rigid foundation as in a one-body scene. This version: q1, one pair, slave faces
-normal to a coordinate axis, the mesh on one level (no -mesh_refine: the multigrid and the
-coarse-to-fine start do not know the coupling yet).
+body on the rigid foundation as in a one-body scene. This version: q1, one pair, its slave
+faces the lower side of their body along a coordinate axis.
 """
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 

@@ -26,6 +26,7 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   hertznu   Hertz, nu from 0.3 to 0.4999999 x q1, q2, q2p1, bbar at nd 2 and 3
   plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2
   scenefiles  malformed scene files (billion laughs, deep nesting, ...): refused in one line
+  bodies    two bodies (punch on plate): F x Nd, initial gaps, stiffness and mesh ratios
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
 stdout.txt, stderr.txt and run.json (options, outcome, error, wall time); a row whose
 run.json records the same options is reused, failed or not (--force reruns). Rows that
@@ -471,6 +472,30 @@ def cases_newton():
     return out
 
 
+def cases_bodies():
+    """Two bodies (runs/scenes/punch_on_plate.yaml: a steel punch pushed down and sideways
+    on an aluminium plate, a dual-mortar pair) in the default mode: F x Nd, initial gaps,
+    stiffness ratios and mesh ratios across the interface."""
+    scene = ["-scene", os.path.join(SCENES, "punch_on_plate.yaml")]
+    rows = [Case(f"bodies-F{f}-nd{n}", f"punch on plate, F = {f}, Nd = {n}",
+                 scene + nd(n) + ["-friction", f])
+            for f in ("0", "0.1", "0.3", "1") for n in (1, 2, 4)]
+    for g in ("1e-5", "1e-4"):                      # the punch lifted by g off the plate
+        up = {"bodies_punch_lower_2": 0.25, "bodies_punch_upper_2": 0.45,
+              "boundary_push_plane_1": 0.45, "boundary_interface_plane_1": 0.25}
+        lift = [a for k, v in up.items() for a in (f"-scene_{k}", num(v + float(g)))]
+        rows += [Case(f"bodies-gap{g}-F{f}", f"punch {g} above the plate, F = {f}, Nd = 2",
+                      scene + nd(2) + ["-friction", f] + lift) for f in ("0", "0.3")]
+    rows += [Case(f"bodies-stiff{k}", f"punch E = {k} x the plate's, F = 0.3, Nd = 2",
+                  scene + nd(2) + ["-scene_bodies_punch_material_young", num(70e3 * float(k))])
+             for k in ("1e-3", "1e-2", "1e2", "1e3")]
+    rows += [Case(f"bodies-mesh{c}", f"punch {c} x {c} cells against the plate's 10 x 10, "
+                  f"F = 0.3, Nd = 2", scene + nd(2) + ["-scene_bodies_punch_cells_0", c,
+                                                      "-scene_bodies_punch_cells_1", c])
+             for c in ("2", "4", "13", "25")]
+    return rows
+
+
 def option_support(cases, out):
     """{option: how it is known} for the options rows require: listed by -help, or accepted
     by the solver (which rejects unknown options) on a tiny run; None if neither."""
@@ -714,6 +739,12 @@ GROUPS = {
                    "Scene files that must be refused in one line, at once: billion laughs, "
                    "deep nesting, a long list, a self-referencing alias, a list for a "
                    "number, a file too large.", cases_scenefiles),
+    "bodies": ("Two bodies (issue 46)",
+               "runs/scenes/punch_on_plate.yaml (a steel punch pushed down by 4e-4 and along x "
+               "by 1e-4 on an aluminium plate; non-matching meshes, a dual-mortar pair) in the "
+               "default mode: F = 0 to 1 at Nd = 1, 2, 4; the punch lifted 1e-5 and 1e-4 off "
+               "the plate; punch stiffness 1e-3 to 1e3 times the plate's; punch meshes of 2 "
+               "to 25 cells a side on the plate's 10.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),
@@ -725,7 +756,8 @@ SMOKE = ("r-fast-1e8", "E-fast-1-rscaled", "nu-fast-nd4-0.3", "F-fast-nd4-0.3",
          "fvar-syntax", "F-fast-relax-0.6", "newton-F-fast-nd4-0.3", "newton-block-shear",
          "fgrid-nd3-F10", "gap-varying-xy-nd2-F10", "held-nd8-s2-q0.8", "held-tall-nd4-tips",
          "rubber-beam-bbar-0.4999999", "fbig-beam-nd4-F1e6", "plate-T0.03-a10-q1-nd1",
-         "plate-T0.03-a5-q2-nd1", "hertznu-q1-nd2-0.3", "scenefile-billion-laughs")
+         "plate-T0.03-a5-q2-nd1", "hertznu-q1-nd2-0.3", "scenefile-billion-laughs",
+         "bodies-gap1e-4-F0.3")
 
 
 def main(argv=None):
