@@ -203,7 +203,7 @@ def test_report(tmp_path):
 def test_stability(tmp_path):
     script("stability.py", "--smoke", "--out-dir", tmp_path)
     md = read(tmp_path / "stability.md")
-    assert md.count("**Summary.**") == 17                     # every group's summary renders
+    assert md.count("**Summary.**") == 18                     # every group's summary renders
     assert "**Findings.**" not in md                          # no prose from the script
     for section in md.split("\n## ")[1:]:                    # each summary is its rows' count
         verdicts = [line.strip("|").split("|")[4].strip() for line in section.splitlines()
