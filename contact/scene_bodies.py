@@ -18,7 +18,7 @@ A contact part with `master:` is a pair: its faces are the slave side, the maste
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
 coupled by the dual mortar (fem/pairs.py). A contact part without `master:` presses its
 body on the rigid foundation as in a one-body scene. This version: q1, one pair, its slave
-faces the lower side of their body along a coordinate axis.
+faces a side of their box (normal to x, y or z).
 """
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 

@@ -489,6 +489,12 @@ def cases_bodies():
     rows += [Case(f"bodies-stiff{k}", f"punch E = {k} x the plate's, F = 0.3, Nd = 2",
                   scene + nd(2) + ["-scene_bodies_punch_material_young", num(70e3 * float(k))])
              for k in ("1e-3", "1e-2", "1e2", "1e3")]
+    swap = ["-scene_boundary_interface_body", "plate",           # the softer body the slave
+            "-scene_boundary_interface_master_body", "punch"]
+    rows += [Case(f"bodies-stiff{k}-plate-slave", f"punch E = {k} x the plate's, the plate's "
+                  f"top the slave, F = 0.3, Nd = 2",
+                  scene + nd(2) + swap + ["-scene_bodies_punch_material_young",
+                                          num(70e3 * float(k))]) for k in ("1e2", "1e3")]
     rows += [Case(f"bodies-mesh{c}", f"punch {c} x {c} cells against the plate's 10 x 10, "
                   f"F = 0.3, Nd = 2", scene + nd(2) + ["-scene_bodies_punch_cells_0", c,
                                                       "-scene_bodies_punch_cells_1", c])
@@ -743,8 +749,9 @@ GROUPS = {
                "runs/scenes/punch_on_plate.yaml (a steel punch pushed down by 4e-4 and along x "
                "by 1e-4 on an aluminium plate; non-matching meshes, a dual-mortar pair) in the "
                "default mode: F = 0 to 1 at Nd = 1, 2, 4; the punch lifted 1e-5 and 1e-4 off "
-               "the plate; punch stiffness 1e-3 to 1e3 times the plate's; punch meshes of 2 "
-               "to 25 cells a side on the plate's 10.", cases_bodies),
+               "the plate; punch stiffness 1e-3 to 1e3 times the plate's (the stiff ones also "
+               "with the plate's top as the slave side); punch meshes of 2 to 25 cells a side "
+               "on the plate's 10.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),

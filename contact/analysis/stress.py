@@ -181,7 +181,7 @@ def contact_basis(cs):
     n), read from the contact set's dofs (the frame's basis off the axes)."""
     B = basis(cs.normal) if cs.off_axes else np.eye(3)
     comps = [int(d[0] % 3) for d in cs.dofs] if cs.local_size else [0, 1, 2]
-    return B[comps]
+    return B[comps] * np.array([1.0, 1.0, cs.sign])[:, None]
 
 
 def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):

@@ -57,6 +57,9 @@ class ContactSet:
         #: n off the axes: the contact nodes' dofs are those of the basis (t1, t2, n) of
         #: contact/fem/frame.py, which the discretisation builds from `nodes`
         self.off_axes = axis is None
+        #: the contact space's normal component is sign times dof `axis` (a contact pair
+        #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1)
+        self.sign = 1.0
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
         comps = [c for c in range(3) if c != self.axis] + [self.axis]
         nv = coords.shape[0]

@@ -186,18 +186,19 @@ class Discretisation:
         part's, its master faces those of master.body on master.plane."""
         m, names = part["master"], list(self.bodies)
         axis, value = AXES[part["plane"][0]], float(part["plane"][1])
-        slave_box = self.bodies[part["body"]]
-        if abs(value - slave_box["lower"][axis]) > 1e-9:
-            raise SceneError(f"contact pair {name!r}: the slave faces must be the lower side "
-                             f"of body {part['body']!r} along {part['plane'][0]} (its outward "
-                             f"normal -{part['plane'][0]}): make {m['body']!r} the slave")
+        box = self.bodies[part["body"]]            # the slave face's outward normal: -+e_axis
+        sign = -1 if abs(value - box["lower"][axis]) <= 1e-9 else \
+            1 if abs(value - box["upper"][axis]) <= 1e-9 else 0
+        if not sign:
+            raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = {value:g} "
+                             f"is no side of body {part['body']!r}")
         master = mesh_bodies.body_faces(self.conn, self.coords, self.body_of,
                                         names.index(m["body"]), AXES[m["plane"][0]],
                                         float(m["plane"][1]))
         if self.comm.tompi4py().allreduce(master.shape[0]) == 0:
             raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face on "
                              f"the plane {m['plane'][0]} = {m['plane'][1]}")
-        pair = ContactPair(self.dm, self.coords, self.parts[name], master, axis, -1,
+        pair = ContactPair(self.dm, self.coords, self.parts[name], master, axis, sign,
                            self.clamped)
         if pair.n_slave == 0:
             raise SceneError(f"contact pair {name!r}: the master faces of {m['body']!r} never "
@@ -263,12 +264,14 @@ class Discretisation:
         if pairs:
             self.pair = self._pair(*pairs[0])
             self.pair_bodies = (pairs[0][1]["body"], pairs[0][1]["master"]["body"])
-            self.normal = list(self.pair.normal)
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
-                             con.get("friction", 0.0), template, normal=self.normal,
+                             con.get("friction", 0.0), template,
+                             normal=self.normal if self.pair is None else np.abs(self.pair.normal),
                              point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
                              roles=self.roles, covered=covered)
+        if self.pair is not None:                # n = -e_k: read as +e_k through Z (pairs.py)
+            self.normal, self.cs.sign = list(self.pair.normal), self.pair.sign
         template.destroy()
         if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
             self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])

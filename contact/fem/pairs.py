@@ -17,8 +17,11 @@ the Newton iteration, its globalisation, its residuals and the paper's loops run
 on (A~, b~). Energies are the same in both bases (u~ . A~ u~ = u . A u, b~ . u~ = b . u);
 the displacement is Z u~ (`to_displacement`).
 
-Z^-1 = I - E (E E = 0: a master node is no slave node), used for the rigid-body
-near-nullspace of A~ (GAMG). Rows and columns of clamped dofs are left out of E: a clamped
+The slave face's outward normal is +e_k or -e_k; n = -e_k is read through D, -1 on the
+slave nodes' k dof (Z = D + E): u~_k = n . g_j, so the contact set's normal is +e_k either
+way (`sign` turns its output back). Z^-1 = D - D E (E D E = 0: a master node is no slave
+node), for the rigid-body near-nullspace of A~ (GAMG), the coarse-to-fine start and the
+multigrid's finest interpolation. Rows and columns of clamped dofs are left out of E: a clamped
 slave component stays u~ = u (0), a clamped master component contributes its 0.
 
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
@@ -75,10 +78,16 @@ class ContactPair:
         self.covered = ok
         self.gaps = (xs - proj) @ self.normal
         self.n_slave = int(ok.sum())
-        self.Z = self._assemble(dm, sid[r], mid[c], v, clamped)
+        #: d = -1 on the slave nodes' axis dof where n = -e_axis (u~ . e_axis = n . g_j),
+        #: so that the contact set reads n as +e_axis (contactset.py; `sign` for output)
+        self.sign = -1.0 if sign > 0 else 1.0
+        flip = 3 * sid[ok] + axis if self.sign < 0 else np.zeros(0, dtype=np.int64)
+        self.Z, self.Zinv = (self._assemble(dm, sid[r], mid[c], v, clamped, flip, inverse)
+                             for inverse in (False, True))
 
-    def _assemble(self, dm, srow, mcol, val, clamped):
-        """Z = I + E as an AIJ Mat (block size 3): rows of the owned slave vertices."""
+    def _assemble(self, dm, srow, mcol, val, clamped, flip, inverse):
+        """Z = D + E (inverse: Z^-1 = D - D E) as an AIJ Mat (block size 3), D the diagonal
+        of 1 and -1 (at the dofs `flip`)."""
         g = dm.createGlobalVec()
         lo, hi = g.getOwnershipRange()
         N = g.getSize()
@@ -89,15 +98,19 @@ class ContactPair:
         held = np.zeros(hi - lo, dtype=bool)
         cl = np.asarray(clamped, dtype=np.int64)
         held[cl[(cl >= lo) & (cl < hi)] - lo] = True
+        d = np.ones(hi - lo)
+        d[flip[(flip >= lo) & (flip < hi)] - lo] = -1.0
         mine = (rows >= lo) & (rows < hi)
         rows, cols, vals = rows[mine], cols[mine], vals[mine]
         heldcol = np.isin(cols, cl)
         keep = ~held[rows - lo] & ~heldcol
         rows, cols, vals = rows[keep], cols[keep], vals[keep]
-        # CSR of the owned rows: the identity and E's entries (columns sorted per row)
+        if inverse:
+            vals = -d[rows - lo] * vals
+        # CSR of the owned rows: D and E's entries (columns sorted per row)
         allr = np.concatenate([np.arange(lo, hi), rows])
         allc = np.concatenate([np.arange(lo, hi), cols])
-        allv = np.concatenate([np.ones(hi - lo), vals])
+        allv = np.concatenate([d, vals])
         order = np.lexsort((allc, allr))
         allr, allc, allv = allr[order], allc[order], allv[order]
         indptr = np.concatenate([[0], np.cumsum(np.bincount(allr - lo, minlength=hi - lo))])
@@ -126,11 +139,10 @@ class ContactPair:
         return out
 
     def from_displacement(self, u):
-        """In place: u <- Z^-1 u = u - E u."""
+        """In place: u <- Z^-1 u."""
         t = u.duplicate()
-        self.Z.mult(u, t)                   # u + E u
-        t.axpy(-1.0, u)                     # E u
-        u.axpy(-1.0, t)
+        self.Zinv.mult(u, t)
+        t.copy(u)
         t.destroy()
         return u
 
@@ -146,12 +158,9 @@ class ContactPair:
         return gap, cov
 
     def from_displacement_rows(self, P):
-        """Z^-1 P = 2 P - Z P (a new Mat): an interpolation into x, y, z turned into this
-        basis (the multigrid's finest one, multigrid.py)."""
-        ZP = self.Z.matMult(P)
-        ZP.scale(-1.0)
-        ZP.axpy(2.0, P, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
-        return ZP
+        """Z^-1 P (a new Mat): an interpolation into x, y, z turned into this basis (the
+        multigrid's finest one, multigrid.py)."""
+        return self.Zinv.matMult(P)
 
     def rigid_body_nullspace(self, coordinates, body_masks):
         """The near-nullspace of A~: each body's six rigid modes (body_masks: a Vec per
