@@ -60,6 +60,14 @@ def _summary(problem, time_total):
         "held_by_friction": problem.friction_held is not None,
         "foundation_normal": [float(c) for c in problem.normal],
         "contact_frame": problem.frame is not None,
+        # several bodies (scene_bodies.py): their names, and the contact pair's slave and
+        # master bodies and slave nodes (contact_result is then the master's force on the
+        # slave body); None: one body on the foundation
+        "bodies": list(problem.disc.bodies) if problem.disc.bodies is not None else None,
+        "contact_pair": None if problem.disc.pair is None else {
+            "slave": problem.disc.pair_bodies[0], "master": problem.disc.pair_bodies[1],
+            "slave_nodes": problem.disc.pair.n_slave,
+            "normal": [float(c) for c in problem.disc.pair.normal]},
         "steps": problem.step_log,
         "skipped": problem.skipped,
         "energy": res.energy(problem),

@@ -201,6 +201,10 @@ def test_shipped_punch_on_plate(comm):
     cr = stress.summary(pr)["contact_result"]
     assert cr["force"][0] < 0.0 < cr["tangential"] < 0.3 * cr["normal"]
     assert cr["area"]["stick"] > 0.0 and cr["area"]["slip"] > 0.0
+    from contact.io import report
+    s = report.summary(pr, 0.0)                      # summary.json names the pair
+    assert s["bodies"] == ["plate", "punch"] and s["contact_pair"]["slave"] == "punch"
+    assert s["contact_pair"]["slave_nodes"] == 64 and s["contact_pair"]["normal"] == [0, 0, 1]
 
 
 def test_multigrid_and_coarse_start_on_a_pair(comm):
