@@ -170,6 +170,18 @@ class Discretisation:
                        for b in self.bodies.values()])
         return lm[self.body_of, 0], lm[self.body_of, 1]
 
+    def node_bodies(self):
+        """Each owned node's body index (float; zeros for one body): the canonical
+        order's last key (io/layout.py), where nodes of two bodies share a place."""
+        n = self.coordinates.getLocalSize() // 3
+        if self.bodies is None:
+            return np.zeros(n)
+        out = np.zeros(n)
+        for i, g in enumerate(self.body_masks()):
+            out += i * g.getArray(readonly=True)[::3]
+            g.destroy()
+        return out
+
     def body_masks(self):
         """A Vec per body, 1 on its dofs."""
         out = []

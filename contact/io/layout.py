@@ -1,7 +1,8 @@
 """Where the results' rows are: the canonical order of a problem's nodes, cells, contact
 nodes and contact faces, and the data gathered on rank 0.
 
-The order does not depend on the partition: nodes and contact nodes sorted by (z, y, x),
+The order does not depend on the partition: nodes and contact nodes sorted by (z, y, x)
+(nodes then by body, where two bodies' nodes share a place),
 cells and faces by their sorted node numbers. `Layout` holds it as canonical.Order's (a
 parallel sample sort) for the files all ranks write together (output.py): a field is
 moved there by a VecScatter, nothing gathered. Tests and scripts gather on rank 0 in the
@@ -25,9 +26,11 @@ def _gatherv(comm, a):
     return np.concatenate(parts) if comm.rank == 0 else None
 
 
-def canonical_order(xyz):
-    """Permutation sorting points by (z, y, x)."""
-    return np.lexsort((xyz[:, 0], xyz[:, 1], xyz[:, 2]))
+def canonical_order(xyz, body=None):
+    """Permutation sorting points by (z, y, x), then by body (nodes of two bodies may share
+    a place: scene_bodies.py)."""
+    keys = (xyz[:, 0], xyz[:, 1], xyz[:, 2])
+    return np.lexsort(keys if body is None else (body,) + keys)
 
 
 def gather_nodes(problem, x=None):
@@ -41,10 +44,11 @@ def gather_nodes(problem, x=None):
     gid = rstart + np.arange(xyz.shape[0])
     lg = problem.dm.getLGMap().getBlockIndices()              # local vertex -> global node
     cells = lg[problem.conn] if problem.conn.size else np.zeros((0, 8), dtype=int)
-    XYZ, U, GID, CELLS = (_gatherv(comm, a) for a in (xyz, u, gid, cells))
+    body = problem.disc.node_bodies()
+    XYZ, U, GID, CELLS, BODY = (_gatherv(comm, a) for a in (xyz, u, gid, cells, body))
     if comm.rank != 0:
         return None
-    order = canonical_order(XYZ)
+    order = canonical_order(XYZ, BODY)
     canon = np.empty(GID.max() + 1, dtype=np.int64)
     canon[GID[order]] = np.arange(order.size)
     C = canon[CELLS]
@@ -91,7 +95,8 @@ class Layout:
         mpi = comm.tompi4py()
         xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)
         first = problem.coordinates.getOwnershipRange()[0] // 3
-        self.nodes = Order(comm, xyz[:, ::-1], first + np.arange(xyz.shape[0]))
+        self.nodes = Order(comm, np.column_stack([xyz[:, ::-1], problem.disc.node_bodies()]),
+                           first + np.arange(xyz.shape[0]))
         number = self.nodes.to_source(self.nodes.offset + np.arange(self.nodes.count))
         vid = np.rint(stress.local_values(dm, np.repeat(number, 3, axis=1))[:, 0])
         cells = vid.astype(np.int64)[problem.conn]

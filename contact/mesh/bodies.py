@@ -49,6 +49,30 @@ def create_mesh(comm, bodies, nd=1):
                                              interpolate=False, comm=comm)
 
 
+def snap(level, bodies):
+    """A refined level's vertices snapped to their bodies' lattices, lower + i h (h = the
+    box over its cells x the level's Nd), as the box kind's are (grading.place): a refined
+    vertex is a mean of its parent's, which rounds differently from vertex to vertex and
+    from partition to partition; snapped, the refined bodies are the bodies built whole,
+    to the bit (canonical orders sort by coordinates). A vertex's body is its cells'."""
+    x = level.coords
+    vb = np.full(x.shape[0], -1, dtype=np.intp)
+    if level.conn.size:
+        vb[level.conn] = cell_bodies(bodies, level.conn, x)[:, None]
+    out = x.copy()
+    for i, b in enumerate(bodies.values()):
+        lo, hi = np.asarray(b["lower"], float), np.asarray(b["upper"], float)
+        h = (hi - lo) / (np.asarray(b["cells"], float) * level.nd)
+        on = vb == i
+        out[on] = lo + h * np.rint((x[on] - lo) / h)
+        if on.any() and np.abs(out[on] - x[on]).max() > 1e-9 * h.min():
+            raise MeshError(f"a refined vertex of body {i} is off its lattice")
+    level.reference = level.coords = out
+    v = level.dm.getCoordinatesLocal()
+    v.setArray(out.ravel())
+    level.dm.setCoordinatesLocal(v)
+
+
 def cell_bodies(bodies, conn, coords):
     """The index (in the scene's order) of each local cell's body: the box its centre is in."""
     centre = coords[conn].mean(axis=1)
