@@ -1,6 +1,7 @@
 # Set-up and entry points. `make run` and `make test` install what is missing first.
 # Debian's interpreter and packages (PETSc 3.18, petsc4py, mpi4py, h5py, Open MPI); a venv
-# that sees them; pymetis (METIS where PETSc lacks ParMETIS) and clarabel (tests) from PyPI.
+# that sees them; CalculiX (ccx: runs/compare_calculix.py, two bodies against its mortar
+# contact); pymetis (METIS where PETSc lacks ParMETIS) and clarabel (tests) from PyPI.
 
 SYSPY    ?= /usr/bin/python3
 VENV     ?= .venv
@@ -15,7 +16,8 @@ ARGS     ?= -element q2 -nd 8 -newton_converged_reason
 #: what make run / run2 write before ARGS (ARGS can override it: the last one wins)
 RUN_OPTS ?= -output_formats h5,xdmf,json,png
 DEB_PKGS := python3-petsc4py python3-mpi4py python3-h5py python3-yaml python3-scipy \
-            python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin
+            python3-matplotlib python3-pytest python3-venv python3-pip openmpi-bin \
+            calculix-ccx
 PIP_PKGS := pymetis clarabel gmsh
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1

@@ -79,7 +79,8 @@ def results_untouched():
                                          ("validate_block.py", "--out"),
                                          ("validate_incline.py", "--out"),
                                          ("element.py", "--out"),
-                                         ("estimate.py", "--out-dir")])
+                                         ("estimate.py", "--out-dir"),
+                                         ("compare_calculix.py", "--out")])
 def test_smoke_needs_an_output_place(name, option):
     """--smoke never falls back on runs/results/ or runs/out/."""
     _, err = script(name, "--smoke", rc=2)
@@ -386,3 +387,19 @@ def test_element_quadratic_part_on_two_ranks(tmp_path):
     assert not any("failed" in c for r in quad.values() for c in r)
     assert [quad[k][3] for k in sorted(quad)] == ["no", "no", "yes", "yes"]
 
+
+
+@pytest.mark.skipif(__import__("shutil").which("ccx") is None,
+                    reason="no CalculiX (apt-get install calculix-ccx; make install does)")
+def test_compare_calculix(tmp_path):
+    """Two frictional blocks on non-matching meshes against CalculiX's mortar contact at the
+    same meshes (runs/compare_calculix.py at Nd = 1): the contact force's normal and
+    tangential parts and the strain energy to 1e-4 (ccx's penalty slope leaves ~1e-5)."""
+    script("compare_calculix.py", "--smoke", "--out", tmp_path / "calculix.md")
+    rows = table_rows(read(tmp_path / "calculix.md"), 1)
+    assert len(rows) == 1
+    r = rows[0]
+    assert int(r[1]) == 3 * (6 * 6 * 4 + 5 * 5 * 4)                # both bodies' nodes
+    for k in (4, 7, 10):                                         # N, T, energy: relative
+        assert float(r[k]) < 1e-4, r
+    assert float(r[2]) > 1.0 and float(r[5]) > 0.1               # pressed and sheared
