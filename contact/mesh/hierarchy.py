@@ -38,7 +38,8 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
-from contact.mesh.bodies import create_mesh as create_bodies
+from contact.mesh.bodies import create_mesh as create_bodies, mapped
+from contact.mesh.bodies import place as place_bodies
 from contact.mesh.grading import local_coordinates, place
 from contact.mesh.refine import refine as refine_serial
 
@@ -126,16 +127,17 @@ class MeshHierarchy:
         self.levels = []
         grading = m.get("grading")                        # mesh/grading.py
         place_ = lambda lv: place(lv, [c * lv.nd for c in per], m["lower"],  # noqa: E731
-                                  m["upper"], grading)
+                                  m["upper"], grading) if self.kind == "box" else \
+            place_bodies(lv, m["bodies"])                 # bodies.py: grading, lower_surface
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
-            if self.kind == "box" and grading:
+            if self.kind == "box" and grading or self.kind == "bodies" and mapped(m["bodies"]):
                 place_(self.levels[0])
             return
         if comm.getSize() == 1 and not dmplex:      # refine.py: no faces or edges built
             for j in range(k + 1):
                 lv = Level(nd0 << j, self._typed(dm))
-                if self.kind == "box":
+                if self.kind == "box" or self.kind == "bodies" and mapped(m["bodies"]):
                     place_(lv)
                 self.levels.append(lv)
                 dm = refine_serial(lv.dm, lv.conn, lv.reference) if j < k else None
@@ -147,7 +149,7 @@ class MeshHierarchy:
                 dm.destroy()
                 dm = fine
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
-            if self.kind == "box":
+            if self.kind == "box" or self.kind == "bodies" and mapped(m["bodies"]):
                 place_(lv)
             elif j == 0:
                 _mark_surfaces(dm, lv.dm)
