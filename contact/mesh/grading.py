@@ -101,30 +101,35 @@ def place(level, cells, lower, upper, grading=None):
     level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
 
 
-def local_coordinates(xi, Xp, x, tol=1e-13, iterations=30):
+def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
     """On mapped levels (a graded box, bodies with a lower_surface): the place in [-1, 1]^3
     of fine vertices x (n, 3) in their parent cells Xp (n, 8, 3, HEX_REF order), the
     inverse of the parent's trilinear map, so that the parent's trilinear functions there
-    are the coarse Q1 space's values at x: P interpolates exactly and the levels' spaces
-    are nested. Newton, vectorised, from the reference place xi (-1, 0, 1 per axis: the
-    lattice's). Where xi is -1 or 1 the vertex lies on the parent's face: that component is
-    kept, exactly (a least-squares step in the others), so a vertex on a face is given by
-    that face's 4 corners alone and neighbouring parents agree on it. On an axis-aligned
-    box cell (a graded box) the map is affine per axis: one step is exact."""
+    are the coarse Q1 space's values at x: P interpolates exactly where the levels are
+    nested. Newton (Gauss-Newton), vectorised, from the reference place xi (-1, 0, 1 per
+    axis: the lattice's). Where xi is -1 or 1 the vertex lies on the parent's face: that
+    component is kept, exactly (least squares in the others: on a curved face a fine
+    vertex is off its parent's bilinear face by the sag), so a vertex on a face is given
+    by that face's 4 corners alone and neighbouring parents agree on it. Stops when the
+    steps are below tol (relative to 2, the cell's width in xi); on an axis-aligned box
+    cell (a graded box) the map is affine per axis: the first step is exact."""
     free = xi == 0.0
     out = np.array(xi, dtype=float, copy=True)
-    scale = np.ptp(Xp, axis=1).max(axis=1) if Xp.size else np.ones(0)
+    step = np.zeros_like(out)
     for _ in range(iterations):
         f = 1.0 + out[:, None, :] * HEX_REF[None, :, :]                  # (n, 8, 3)
         N = np.prod(f, axis=2) / 8.0                                      # (n, 8)
         dN = np.stack([HEX_REF[None, :, d] * np.prod(np.delete(f, d, axis=2), axis=2)
                        for d in range(3)], axis=2) / 8.0                  # (n, 8, 3)
         r = x - np.einsum("na,nai->ni", N, Xp)
-        if not r.size or np.abs(r).max(axis=1).max() <= tol * scale.max():
-            break
         J = np.einsum("nai,naj->nij", Xp, dN) * free[:, None, :]          # free columns
         A = np.einsum("nki,nkj->nij", J, J) + np.eye(3) * (~free)[:, :, None]
-        out += np.linalg.solve(A, np.einsum("nki,nk->ni", J, r)[..., None])[..., 0]
+        step = np.linalg.solve(A, np.einsum("nki,nk->ni", J, r)[..., None])[..., 0]
+        out += step
+        if np.abs(step).max(initial=0.0) <= tol:
+            break
+    if np.abs(step).max(initial=0.0) > 1e-8:
+        raise MeshError("the inverse trilinear map of a mapped level did not converge")
     if out.size and np.abs(out[free]).max(initial=0.0) >= 1.0:
         raise MeshError("a mapped level's vertex is not inside its parent cell")
     return np.clip(out, -1.0, 1.0)
