@@ -148,7 +148,6 @@ def hertz2(nd):
     return scenes.validate(sc)
 
 
-@pytest.mark.slow
 def test_two_body_hertz():
     """runs/scenes/hertz_two_bodies.yaml at Nd = 2 (the ball's curved face the master):
     converged; the contact radius and peak pressure fitted to the slave's multipliers are
