@@ -12,6 +12,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem, options, scene as scenes
+from contact.mesh import grading
 from contact.mesh.hierarchy import MeshHierarchy
 from contact.validation import theory as th
 from contact.validation.hertz import R_SPHERE, analyse
@@ -48,7 +49,8 @@ SPHERE = "(x**2 + y**2) / (2 * 4.0)"
 def test_every_level_is_mapped():
     """On each level, the ball's vertices on its box's lower plane (reference z = 0) lie on
     z = f(x, y) at their mapped x, y (bump-graded), those on its top at z = 1; the block
-    is not moved (reference = coords there); x, y are the grading's map of the lattice."""
+    is not moved (reference = coords there); every ball vertex is the map of its lattice
+    place (x graded, z graded then shifted)."""
     comm = PETSc.COMM_WORLD
     with options.inserted({"mesh_refine": "2"}):
         h = MeshHierarchy(two_bodies(4, SPHERE, {"x": {"bump": 0.3}, "z": {"progression": 3.0}}),
@@ -69,10 +71,14 @@ def test_every_level_is_mapped():
         assert np.abs(X[top, 2] - 1.0).max(initial=0.0) < 1e-14
         blk = ~of
         assert np.array_equal(X[blk], R[blk])
-        # x is bump-graded (not the lattice) on the ball, z inside the ball moved
-        inner = of & (np.abs(R[:, 0] - 0.25) < 1e-12)
-        if inner.any():
-            assert np.abs(X[inner, 0] - 0.25).min() > 1e-3
+        # every ball vertex: x bump-graded, z graded then moved by f(1 - z) (the ball is
+        # [0, 1]^3: the fade is 1 - z), y as it was
+        xg = grading.bump(R[of, 0], 0.3)
+        zg = grading.progression(R[of, 2], 3.0)
+        want = np.c_[xg, R[of, 1], zg + (xg ** 2 + R[of, 1] ** 2) / 8.0 * (1.0 - zg)]
+        assert np.abs(X[of] - want).max(initial=0.0) < 1e-14
+        assert comm.tompi4py().allreduce(np.abs(X[of, 0] - R[of, 0]).max(initial=0.0),
+                                         op=MPI.MAX) > (1e-2 if lv.nd > 1 else -1.0)
 
 
 def test_interpolation_is_exact_where_the_mesh_is_nested():
