@@ -169,6 +169,7 @@ validate: install
 	$(PY) runs/validate.py $(VALIDATE_ARGS)
 	$(PY) runs/validate_block.py
 	$(PY) runs/validate_incline.py
+	$(PY) runs/validate_two_bodies.py
 
 clean:
 	rm -rf runs/out .pytest_cache

@@ -19,10 +19,18 @@ the faces of `master.body` on `master.plane` (default: the slave's plane); the t
 coupled by the dual mortar (fem/pairs.py). A contact part without `master:` presses its
 body on the rigid foundation as in a one-body scene. This version: q1, one pair, its slave
 faces a side of their box (normal to x, y or z).
+
+A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
+"<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
+linearly to 0 at its upper face (mesh/bodies.py: body_map); planes still name the box
+(`plane: [z, lower_z]` is the curved face), which a pair's master may be (not its slave).
 """
 from contact import scene as _scene     # (read when called: scene.py imports this first)
+import numpy as np
 
-BODY_KEYS = ("lower", "upper", "cells", "material")
+from contact import expression
+
+BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface")
 
 
 def expand(scene):
@@ -57,6 +65,10 @@ def expand(scene):
             raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
         _scene._check_keys(b["material"], "material", f"{where}: material")
         _scene._material(b["material"])
+        if "grading" in b:
+            _body_grading(b, where)
+        if "lower_surface" in b:
+            _lower_surface(b, lo, hi, where)
         for other, (olo, ohi) in boxes:
             if all(max(a, c) < min(bb, d) for a, bb, c, d in zip(lo, hi, olo, ohi)):
                 raise SceneError(f"bodies {other!r} and {name!r} overlap")
@@ -74,6 +86,35 @@ def expand(scene):
                          "section, -young and -poisson do not apply)")
     if isinstance(scene.get("boundary"), dict):
         check_parts(scene)
+
+
+def _body_grading(b, where):
+    """A body's grading: mesh.grading's syntax and ranges (scene._grading) on its box."""
+    try:
+        _scene._grading({"type": "box", "grading": b["grading"]})
+    except _scene.SceneError as e:
+        raise _scene.SceneError(f"{where}: " + str(e).replace("mesh.grading", "grading")) \
+            from None
+
+
+def _lower_surface(b, lo, hi, where):
+    """A body's lower_surface f(x, y) (an expression, contact/expression.py): its lower
+    face at z = lower_z + f, the shift fading to 0 at the upper face (mesh/bodies.py).
+    Refused where f < 0 or f >= half the body's height on the lower face (sampled on a
+    33 x 33 grid, its corners and edges included): the cells there would fold or flatten."""
+    SceneError = _scene.SceneError
+    try:
+        f = expression.parse(b["lower_surface"])
+        t = np.linspace(0.0, 1.0, 33)
+        X, Y = np.meshgrid(lo[0] + t * (hi[0] - lo[0]), lo[1] + t * (hi[1] - lo[1]))
+        v = expression.values(f, np.stack([X.ravel(), Y.ravel(), np.full(X.size, lo[2])], 1))
+    except (expression.ExpressionError, ValueError, TypeError, ZeroDivisionError) as e:
+        raise SceneError(f"{where}: lower_surface: {str(e).splitlines()[0]}") from None
+    half = (hi[2] - lo[2]) / 2.0
+    if not (np.all(np.isfinite(v)) and v.min() >= 0.0 and v.max() < half):
+        raise SceneError(f"{where}: lower_surface must be >= 0 and < half the body's height "
+                         f"({half:g}) on its lower face, got values in [{np.nanmin(v):g}, "
+                         f"{np.nanmax(v):g}]")
 
 
 def check_parts(scene):

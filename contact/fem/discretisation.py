@@ -75,6 +75,8 @@ class Discretisation:
             where = f"the physical surface {group!r}"
         else:
             axis, value = part["plane"]
+            if self.bodies is not None:        # planes name the unmapped boxes (a body's
+                coords = self.level.reference  # lower_surface: mesh/bodies.py)
             if "body" in part:                 # a body's faces there (mesh/bodies.py)
                 faces = mesh_bodies.body_faces(conn, coords, self.body_of,
                                                list(self.bodies).index(part["body"]),
@@ -119,7 +121,7 @@ class Discretisation:
         #: several bodies (scene_bodies.py): {name: box}, and each local cell's body index
         self.bodies = m["bodies"] if m["type"] == "bodies" else None
         self.body_of = None if self.bodies is None else \
-            mesh_bodies.cell_bodies(self.bodies, conn, coords)
+            mesh_bodies.cell_bodies(self.bodies, conn, lv.reference)
         self.element = element_of(sc)
         #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)
@@ -204,7 +206,7 @@ class Discretisation:
         if not sign:
             raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = {value:g} "
                              f"is no side of body {part['body']!r}")
-        master = mesh_bodies.body_faces(self.conn, self.coords, self.body_of,
+        master = mesh_bodies.body_faces(self.conn, self.level.reference, self.body_of,
                                         names.index(m["body"]), AXES[m["plane"][0]],
                                         float(m["plane"][1]))
         if self.comm.tompi4py().allreduce(master.shape[0]) == 0:

@@ -10,10 +10,17 @@ A cell's body is the box its centre lies in (`cell_bodies`): the same on every l
 rank, with no label to carry through distribution. A boundary part of a body (`body_faces`)
 is the faces on its plane of that body's cells, oriented counter-clockwise about the
 body's outward normal (fem/mortar.py's convention).
+
+A body with `grading` or `lower_surface` (scene_bodies.py) is a map of its box (body_map):
+each level's vertices are the map of that level's box lattice (`place`, like
+grading.place for a box mesh), level.reference keeping the unmapped places; cells, bodies
+and boundary planes are found there, the element integrals use the mapped ones.
 """
 import numpy as np
 from petsc4py import PETSc
 
+from contact import expression
+from contact.mesh.grading import graded
 from contact.mesh.plex import HEX_FACES, HEX_REF, MeshError
 
 
@@ -103,3 +110,44 @@ def body_faces(conn, coords, body_of, body, axis, value, tol=1e-9):
     flip = n * out < 0.0
     faces[flip] = faces[flip][:, ::-1]
     return faces
+
+
+def mapped(bodies):
+    """Whether a body has a grading or a lower_surface (its levels are placed by `place`)."""
+    return any("grading" in b or "lower_surface" in b for b in bodies.values())
+
+
+def body_map(X, b):
+    """Points X (n, 3) of body b's box on its map: graded per axis (grading.graded), then
+    z moved by f(x, y) (b's lower_surface, at the graded x, y) fading linearly from the
+    lower face (z = lower_z + f) to the upper one (unmoved): a new array."""
+    lo, hi = np.asarray(b["lower"], float), np.asarray(b["upper"], float)
+    out = graded(X, b["grading"], lo, hi) if b.get("grading") else np.array(X, dtype=float)
+    if b.get("lower_surface") is not None:
+        f = expression.values(b["lower_surface"], out)
+        out[:, 2] += f * (hi[2] - out[:, 2]) / (hi[2] - lo[2])
+    return out
+
+
+def place(level, bodies):
+    """The level's vertices on their bodies' maps (body_map), as grading.place does for a
+    box: level.reference keeps the unmapped places (refinement, the search for a fine
+    vertex in its parent, the boundary parts' planes), level.coords and the DM's
+    coordinates (a Vec of its own: DMRefine's mesh keeps the one it had) are mapped. A
+    vertex's body is its cells' (cell_bodies on the reference: bodies that touch have
+    vertices at the same place, never shared). A refined level is snapped to its bodies'
+    lattices first (`snap`)."""
+    snap(level, bodies)
+    if not mapped(bodies):
+        return
+    X = level.reference
+    of = np.full(X.shape[0], -1, dtype=np.intp)
+    of[level.conn.ravel()] = np.repeat(cell_bodies(bodies, level.conn, X), 8)
+    out = np.array(X, dtype=float, copy=True)
+    for i, b in enumerate(bodies.values()):
+        on = of == i
+        out[on] = body_map(X[on], b)
+    level.coords, level.lattice = out, None
+    v = level.dm.getCoordinatesLocal().duplicate()
+    v.setArray(out.ravel())
+    level.dm.setCoordinatesLocal(v)

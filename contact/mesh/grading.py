@@ -32,7 +32,7 @@ quadratic interpolant of phi, positive where phi' varies little over an element)
 """
 import numpy as np
 
-from contact.mesh.plex import MeshError
+from contact.mesh.plex import HEX_REF, MeshError
 
 AXES = ("x", "y", "z")
 KINDS = ("bump", "progression")
@@ -101,16 +101,35 @@ def place(level, cells, lower, upper, grading=None):
     level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
 
 
-def local_coordinates(xi, Xp, x):
-    """On graded levels: the place in [-1, 1]^3 of fine vertices x (n, 3) in their parent
-    cells Xp (n, 8, 3), axis-aligned boxes (a graded box's cells): per axis
-    2 (x - min) / (max - min) - 1. The trilinear parent functions at it are the coarse
-    Q1 space's values there, exactly (on an axis-aligned box the trilinear map is affine
-    per axis), so the graded levels' spaces are nested as the uniform ones are.
-    xi: the reference places (-1, 0, 1 per axis: the lattice's); where xi is -1 or 1 the
-    vertex lies on the parent's face (xi kept, exactly), where 0 strictly inside it."""
-    lo, hi = Xp.min(axis=1), Xp.max(axis=1)
-    out = np.where(xi == 0.0, 2.0 * (x - lo) / (hi - lo) - 1.0, xi)
-    if out.size and np.abs(out[xi == 0.0]).max(initial=0.0) >= 1.0:
-        raise MeshError("a graded level's vertex is not inside its parent cell")
+def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
+    """On mapped levels (a graded box, bodies with a lower_surface): the place in [-1, 1]^3
+    of fine vertices x (n, 3) in their parent cells Xp (n, 8, 3, HEX_REF order), the
+    inverse of the parent's trilinear map, so that the parent's trilinear functions there
+    are the coarse Q1 space's values at x: P interpolates exactly where the levels are
+    nested. Newton (Gauss-Newton), vectorised, from the reference place xi (-1, 0, 1 per
+    axis: the lattice's). Where xi is -1 or 1 the vertex lies on the parent's face: that
+    component is kept, exactly (least squares in the others: on a curved face a fine
+    vertex is off its parent's bilinear face by the sag), so a vertex on a face is given
+    by that face's 4 corners alone and neighbouring parents agree on it. Stops when the
+    steps are below tol (relative to 2, the cell's width in xi); on an axis-aligned box
+    cell (a graded box) the map is affine per axis: the first step is exact."""
+    free = xi == 0.0
+    out = np.array(xi, dtype=float, copy=True)
+    step = np.zeros_like(out)
+    for _ in range(iterations):
+        f = 1.0 + out[:, None, :] * HEX_REF[None, :, :]                  # (n, 8, 3)
+        N = np.prod(f, axis=2) / 8.0                                      # (n, 8)
+        dN = np.stack([HEX_REF[None, :, d] * np.prod(np.delete(f, d, axis=2), axis=2)
+                       for d in range(3)], axis=2) / 8.0                  # (n, 8, 3)
+        r = x - np.einsum("na,nai->ni", N, Xp)
+        J = np.einsum("nai,naj->nij", Xp, dN) * free[:, None, :]          # free columns
+        A = np.einsum("nki,nkj->nij", J, J) + np.eye(3) * (~free)[:, :, None]
+        step = np.linalg.solve(A, np.einsum("nki,nk->ni", J, r)[..., None])[..., 0]
+        out += step
+        if np.abs(step).max(initial=0.0) <= tol:
+            break
+    if np.abs(step).max(initial=0.0) > 1e-8:
+        raise MeshError("the inverse trilinear map of a mapped level did not converge")
+    if out.size and np.abs(out[free]).max(initial=0.0) >= 1.0:
+        raise MeshError("a mapped level's vertex is not inside its parent cell")
     return np.clip(out, -1.0, 1.0)

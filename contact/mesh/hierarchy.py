@@ -38,7 +38,8 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
-from contact.mesh.bodies import create_mesh as create_bodies, snap as snap_bodies
+from contact.mesh.bodies import create_mesh as create_bodies, mapped
+from contact.mesh.bodies import place as place_bodies
 from contact.mesh.grading import local_coordinates, place
 from contact.mesh.refine import refine as refine_serial
 
@@ -125,12 +126,12 @@ class MeshHierarchy:
         self.partitioner = mesh.distribute(dm)
         self.levels = []
         grading = m.get("grading")                        # mesh/grading.py
-        place_ = (lambda lv: place(lv, [c * lv.nd for c in per], m["lower"],  # noqa: E731
-                                   m["upper"], grading)) if self.kind == "box" else \
-            (lambda lv: snap_bodies(lv, m["bodies"]))   # each body on its own lattice
+        place_ = lambda lv: place(lv, [c * lv.nd for c in per], m["lower"],  # noqa: E731
+                                  m["upper"], grading) if self.kind == "box" else \
+            place_bodies(lv, m["bodies"])     # bodies.py: lattices, grading, lower_surface
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
-            if self.kind == "box" and grading:
+            if self.kind == "box" and grading or self.kind == "bodies" and mapped(m["bodies"]):
                 place_(self.levels[0])
             return
         if comm.getSize() == 1 and not dmplex:      # refine.py: no faces or edges built
