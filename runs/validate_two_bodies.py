@@ -10,7 +10,7 @@ force against Hertz's P(delta) with delta = d (the top's displacement) less noth
 Boussinesq correction of each body (approach_correction at its height), first order in
 a / H only.
 
-    PYTHONPATH=. python runs/validate_two_bodies.py [nd ...]       (default 2 4)
+    python runs/validate_two_bodies.py [nd ...]       (default 2 4)
 """
 import os
 import sys

@@ -403,3 +403,13 @@ def test_compare_calculix(tmp_path):
     for k in (4, 7, 10):                                         # N, T, energy: relative
         assert float(r[k]) < 1e-4, r
     assert float(r[2]) > 1.0 and float(r[5]) > 0.1               # pressed and sheared
+
+
+def test_validate_two_bodies():
+    """runs/validate_two_bodies.py at Nd = 2 as a user runs it: two-body Hertz's contact
+    radius and peak pressure within 1 % of the closed form at the computed force."""
+    out, _ = script("validate_two_bodies.py", "2")
+    m = re.search(r"nd=2 .*a_H\(P\)=\S+ \(([-+.0-9]+)\) p0_fit=\S+ p0_H\(P\)=\S+ "
+                  r"\(([-+.0-9]+)\)", out)
+    assert m, out
+    assert abs(float(m.group(1))) < 0.01 and abs(float(m.group(2))) < 0.01, out
