@@ -29,6 +29,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+from contact.mesh.bodies import box_cells  # noqa: E402
 from contact.validation import harness  # noqa: E402
 
 PUSH = (1e-3, 0.0, -4e-3)
@@ -53,16 +54,10 @@ def scene(friction):
 
 
 def box(cells, lo, hi):
-    """(conn (nc, 8) C3D8 order, coords (nv, 3)) of a box of cells."""
-    n = [int(c) for c in cells]
-    axes = [np.linspace(a, b, k + 1) for a, b, k in zip(lo, hi, n)]
-    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    vid = np.arange(X.shape[0]).reshape([k + 1 for k in n])
-    i, j, k = (a.ravel() for a in np.meshgrid(*[np.arange(m) for m in n], indexing="ij"))
-    corner = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                       [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
-    return vid[i[:, None] + corner[:, 0], j[:, None] + corner[:, 1],
-               k[:, None] + corner[:, 2]], X
+    """(conn (nc, 8) C3D8 order, coords (nv, 3)) of a box of cells: the bodies' own
+    (mesh/bodies.py: the same nodes ours solves on), its corners in C3D8's order."""
+    conn, X = box_cells(cells, lo, hi)
+    return conn[:, C3D8], X
 
 
 def deck(nd, friction, slope=1e8):

@@ -124,13 +124,18 @@ class ContactPair:
         """A~ = Z^T A Z (a new Mat; A is left as it is)."""
         return A.ptap(self.Z)          # (petsc_compat: ptap on 3.18 and 3.26)
 
+    @staticmethod
+    def _in_place(apply, v):
+        """v <- apply(v, out) through a work Vec; returns v."""
+        t = v.duplicate()
+        apply(v, t)
+        t.copy(v)
+        t.destroy()
+        return v
+
     def transform_load(self, b):
         """In place: b <- Z^T b."""
-        t = b.duplicate()
-        self.Z.multTranspose(b, t)
-        t.copy(b)
-        t.destroy()
-        return b
+        return self._in_place(self.Z.multTranspose, b)
 
     def to_displacement(self, xt, out=None):
         """u = Z u~ (a new Vec unless `out`)."""
@@ -140,11 +145,7 @@ class ContactPair:
 
     def from_displacement(self, u):
         """In place: u <- Z^-1 u."""
-        t = u.duplicate()
-        self.Zinv.mult(u, t)
-        t.copy(u)
-        t.destroy()
-        return u
+        return self._in_place(self.Zinv.mult, u)
 
     def vertex_gaps(self, nv_owned, rstart_block):
         """(gap per owned vertex, covered mask per owned vertex): the pair's gaps at the
