@@ -77,6 +77,12 @@ class ContactPair:
         self.slave_ids = sid
         self.covered = ok
         self.gaps = (xs - proj) @ self.normal
+        # touching faces: a gap of rounding size has the sign of the summation order, which
+        # the partition sets (the surfaces are gathered in rank order); 0 it is, so that the
+        # first Newton step's active set is the same on every partition (8 ranks: a node
+        # open at +1e-17 took one more step than on 1)
+        scale = max(np.abs(xs).max(initial=0.0), np.abs(xm).max(initial=0.0), 1e-300)
+        self.gaps[np.abs(self.gaps) <= 64.0 * np.finfo(float).eps * scale] = 0.0
         self.n_slave = int(ok.sum())
         #: d = -1 on the slave nodes' axis dof where n = -e_axis (u~ . e_axis = n . g_j),
         #: so that the contact set reads n as +e_axis (contactset.py; `sign` for output)
