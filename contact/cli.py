@@ -8,7 +8,7 @@ import time
 
 from petsc4py import PETSc
 
-from contact import options, resources, scene as scenes
+from contact import adapt, options, resources, scene as scenes
 from contact.io import output, report
 from contact.fem.discretisation import element_of
 from contact.solvers.loop import ConvergenceError, ResidualCheckError
@@ -46,11 +46,15 @@ def run(comm=None):
     skipped = _size_check(comm, sc)
     if formats:
         output.prepare_dir(comm.tompi4py(), outdir)
-    target = options.get("error_target")
+    target, auto = options.get("error_target"), adapt.axes(sc)
     if target:
-        problem, s, failure = _solve_to_target(comm, sc, target, t0, skipped, formats)
+        problem, s, failure = _solve_to_target(comm, sc, target, t0, skipped, formats, auto)
     else:
+        info = None
+        if auto:                                    # mesh.grading auto: a pilot first
+            sc, info = adapt.graded_scene(sc, comm, auto)
         problem, failure = ContactProblem(sc, comm), None
+        problem.grading_info = info
         problem.skipped += skipped
         problem.solve()
         _skipped_formats(problem, formats)
@@ -80,22 +84,31 @@ def _skipped_formats(problem, formats):
             f for f in output.FORMATS if f not in formats) + " (-output_formats)")
 
 
-def _solve_to_target(comm, sc, target, t0, skipped, formats):
+def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     """-error_target: solve at Nd, 2 Nd, 4 Nd, ... (each run's coarse-to-fine start solves
-    its coarser levels first) until the estimated relative error of -error_quantity is at
-    most `target`. Returns (last problem, its summary with `error_target`, the reason it
-    stopped short or None)."""
-    quantity = options.get("error_quantity")
+    its coarser levels first; -error_refine graded: each run after the first graded along
+    every axis the scene does not grade itself, from the run before's error indicator,
+    contact/adapt.py) until the estimated relative error of -error_quantity is at most
+    `target`. Returns (last problem, its summary with `error_target`, the reason it stopped
+    short or None)."""
+    quantity, refine = options.get("error_quantity"), options.get("error_refine")
     if quantity not in TARGET_KEYS:
         raise ValueError(f"-error_quantity must be one of {', '.join(TARGET_KEYS)}, got "
                          f"{quantity!r}")
+    if refine not in ("graded", "uniform"):
+        raise ValueError(f"-error_refine must be graded or uniform, got {refine!r}")
     if not (0.0 < target < 1.0) or sc["mesh"].get("type", "box") != "box":
         raise ValueError(f"-error_target needs 0 < TOL < 1 and a box mesh (Nd doubles), got "
                          f"{target:g} and a {sc['mesh'].get('type')} mesh")
     key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
-    history, failure = [], None
+    fixed = sc["mesh"].get("grading") if isinstance(sc["mesh"].get("grading"), dict) else {}
+    grade = auto or ([a for a in "xyz" if a not in fixed] if refine == "graded" else [])
+    history, failure, info = [], None, None
+    if auto:
+        sc, info = adapt.graded_scene(sc, comm, auto)
     while True:
         problem = ContactProblem(copy.deepcopy(sc), comm)
+        problem.grading_info = info
         problem.skipped += skipped
         problem.solve()
         _skipped_formats(problem, formats)
@@ -125,6 +138,8 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats):
                        + (f"{rel:.2e}" if rel is not None else "unestimated"))
             break
         sc["mesh"]["nd"] = 2 * problem.nd
+        if grade and problem.error_indicator is not None:   # (else: no level below it)
+            sc, info = adapt.graded_scene(sc, comm, grade, solved=problem)
         del problem
     s["error_target"] = {"target": target, "quantity": quantity, "reached": failure is None,
                          "reason": failure, "runs": history}

@@ -93,13 +93,15 @@ REGISTRY = [
            "the contact force and the energy from the run's own coarse-to-fine levels "
            "(Richardson; three levels or more; their Newton iterations then go to "
            "-newton_rtol 1e-10)", "BOOL"),
-    Option("error_target", 0.0, float, "refine by doubling Nd (box meshes), each run started "
-           "from its coarser levels, until the estimated relative error of "
+    Option("error_target", 0.0, float, "refine (box meshes: Nd doubled, graded by the "
+           "previous run's indicator: -error_refine) until the estimated relative error of "
            "-error_quantity is <= TOL; prints error against run time as it goes; stops "
            "with a named reason at -error_max_dofs or where the levels are not asymptotic "
            "(then exit status 1, the last run's results written); 0: off", "TOL"),
     Option("error_quantity", "energy", str, "the quantity -error_target bounds",
            "energy|force|max_u"),
+    Option("error_refine", "graded", str, "-error_target: graded (each run graded by the "
+           "previous run's error indicator, contact/adapt.py) or uniform", "graded|uniform"),
     Option("error_max_dofs", 20_000_000, int, "-error_target: no run with more dofs", "N"),
     Option("memory_check", True, bool, "before the mesh: estimate the peak memory per rank "
            "(runs/results/bench-memory.md) and stop, saying how many ranks would fit, where "
@@ -121,6 +123,12 @@ REGISTRY = [
     Option("mesh_refine_dmplex", False, bool, "on one process too, refine with DMPlex's "
            "DMRefine (it builds every face and edge; default there: the same refinement in "
            "NumPy, contact/mesh/refine.py)", "BOOL"),
+    Option("mesh_grading", "scene", str, "box meshes: auto: every axis graded where the "
+           "error is, from the error indicator of a pilot at Nd / -mesh_grading_pilot "
+           "(contact/adapt.py); uniform: the scene's grading dropped", "scene|auto|uniform"),
+    Option("mesh_grading_pilot", 2, int, "mesh.grading auto: the pilot's Nd is Nd / M", "M"),
+    Option("mesh_grading_max_ratio", 30.0, float, "mesh.grading auto: the largest ratio "
+           "of cell sizes along an axis", "R"),
     Option("assembly_stencil", True, bool, "a box of identical cells on one process: the "
            "stiffness as a stencil of one element matrix (contact/fem/stencil.py; false: "
            "cell by cell, as on other meshes)", "BOOL"),

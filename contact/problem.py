@@ -55,9 +55,11 @@ class ContactProblem:
         #: the coarse-to-fine levels asked for (-c2f_levels, the scene's, or c2f_levels)
         self.c2f_asked = self._c2f_asked()
         self.coarse_runs = []
-        #: estimate.cell_indicator: (eta per local cell, its total, ||u||_a), or None
+        #: estimate.cell_indicator: (eta per local cell, its total, ||u||_a, its parts
+        #: along x, y, z per cell), or None
         self.error_indicator = None
         self._prolonged = None                # P u_2h while the fine level solves
+        self.coarse_slabs = None              # the coarser level's slab_errors, or None
         self.increments = []                  # the load increments' fields (output.py)
         #: -error_estimate: the coarse levels solved tightly and their quantities kept
         self.estimating = bool(options.get("error_estimate"))
@@ -161,6 +163,10 @@ class ContactProblem:
              "iterations": coarse.iterations(),
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
         start = self._prolonged_start(coarse) if prolong else None
+        if coarse.error_indicator is not None and h.kind == "box":
+            #: the coarser level's indicator along each axis (estimate.slab_errors): with
+            #: this level's, the local orders of contact/adapt.py's grading
+            self.coarse_slabs = [estimate.slab_errors(coarse, a) for a in range(3)]
         del coarse
         gc.collect()              # the coarse levels' matrices, before the fine solve
         if self.level == len(h.levels) - 1:
@@ -174,7 +180,7 @@ class ContactProblem:
         h = self.hierarchy
         P = h.prolongation(self.level)
         transfer.prolong_displacement(P, coarse, self, coarse.x, self.x)
-        if self.estimating and self.level == len(h.levels) - 1:
+        if self.estimating:
             self._prolonged = self.x.copy()          # P u_2h: estimate.cell_indicator
         l0, g0 = self.cs.vec(), self.cs.vec()
         transfer.prolong_contact(P, coarse, self, coarse.l, l0)

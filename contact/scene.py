@@ -15,7 +15,7 @@ import reprlib
 import yaml
 from petsc4py import PETSc
 
-from contact import expression, options, scene_bodies
+from contact import expression, options, scene_bodies, scene_grading
 
 #: named options -> path in the scene (declared in the option registry, options.py)
 NAMED = options.NAMED
@@ -34,7 +34,7 @@ SCHEMA = {
            "solver", "loading", "bodies"),
     "mesh": ("type", "lower", "upper", "cells_per_nd", "nd", "file", "parameters", "rotate",
              "element", "grading", "bodies"),
-    "grading": ("x", "y", "z"), "grading axis": ("bump", "progression"),
+    "grading": ("x", "y", "z"), "grading axis": ("bump", "progression", "points"),
     "rotate": ("axis", "degrees", "origin"),
     "material": ("young", "poisson"),
     "contact": ("friction", "foundation", "gap"),
@@ -312,7 +312,7 @@ def validate(scene, sources=None):
     if "rotate" in mesh:
         _rotate(mesh["rotate"])
     if "grading" in mesh:
-        _grading(mesh)
+        scene_grading.check(mesh)
     el = mesh.get("element", "auto")
     if el != "auto" and el not in options.ELEMENT_NAMES:
         raise SceneError(f"mesh.element must be auto, {', '.join(options.ELEMENT_NAMES)}, "
@@ -350,20 +350,6 @@ def _box(mesh):
     if not (isinstance(cpn, list) and len(cpn) == 3 and
             all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cpn)):
         raise SceneError(f"mesh.cells_per_nd must be 3 integers >= 1, got {_shown(cpn)}")
-
-
-def _grading(mesh):
-    """mesh.grading (box): per axis one {bump: c} or {progression: r} (mesh/grading.py)."""
-    if mesh["type"] != "box":
-        raise SceneError(f"mesh.grading needs a box mesh (mesh.type: box), not {mesh['type']!r}")
-    _check_keys(mesh["grading"], "grading", "mesh.grading")
-    for axis, spec in mesh["grading"].items():
-        _check_keys(spec, "grading axis", f"mesh.grading.{axis}")
-        (kind, v), = spec.items() if len(spec) == 1 else [("bump|progression (one)", spec)]
-        if not _number(v) or not 1e-3 <= v <= 1e3:
-            raise SceneError(f"mesh.grading.{axis}.{kind} must be a number in [0.001, 1000], "
-                             f"got {_shown(v)}")
-        spec[kind] = float(v)
 
 
 def _rotate(rot):

@@ -28,7 +28,7 @@ linearly to 0 at its upper face (mesh/bodies.py: body_map); planes still name th
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 import numpy as np
 
-from contact import expression
+from contact import expression, scene_grading
 
 BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface")
 
@@ -91,7 +91,7 @@ def expand(scene):
 def _body_grading(b, where):
     """A body's grading: mesh.grading's syntax and ranges (scene._grading) on its box."""
     try:
-        _scene._grading({"type": "box", "grading": b["grading"]})
+        scene_grading.check({"type": "box", "grading": b["grading"]}, auto=False)
     except _scene.SceneError as e:
         raise _scene.SceneError(f"{where}: " + str(e).replace("mesh.grading", "grading")) \
             from None

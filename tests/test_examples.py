@@ -80,6 +80,7 @@ def results_untouched():
                                          ("validate_incline.py", "--out"),
                                          ("element.py", "--out"),
                                          ("estimate.py", "--out-dir"),
+                                         ("adaptive.py", "--out-dir"),
                                          ("compare_calculix.py", "--out")])
 def test_smoke_needs_an_output_place(name, option):
     """--smoke never falls back on runs/results/ or runs/out/."""
@@ -296,6 +297,19 @@ def test_validate_incline(tmp_path):
     for mode in ("faithful", "fast"):                         # the turned beam: R u
         row, = table_rows(md, mode)
         assert float(row[2]) < 1e-6
+
+
+@pytest.mark.slow
+def test_adaptive(tmp_path):
+    """runs/adaptive.py at its smallest (q1, Nd = 16, one rank): the three meshes of one
+    size, their true errors from the report's continuum values; the auto-graded beam's
+    energy error below the uniform box's."""
+    script("adaptive.py", "--smoke", "--out-dir", tmp_path)
+    rows = {r[2]: r for r in table_rows(read(tmp_path / "adaptive.md"), "q1")}
+    assert set(rows) == {"uniform", "bump", "auto"}
+    assert len({r[3] for r in rows.values()}) == 1                      # the same dofs
+    j = {m: float(r[9].split("%")[0]) for m, r in rows.items()}
+    assert j["auto"] < j["uniform"] and j["bump"] < j["uniform"]
 
 
 @pytest.mark.slow

@@ -8,7 +8,7 @@ import os
 from conftest import ROOT
 
 #: the layers, in the order data flows; a module may import its own layer and those before
-LAYERS = {"options": 0, "scene": 0, "scene_bodies": 0, "expression": 0, "geometry": 0, "petsc_compat": 0,
+LAYERS = {"options": 0, "scene": 0, "scene_bodies": 0, "scene_grading": 0, "adapt": 6, "expression": 0, "geometry": 0, "petsc_compat": 0,
           "resources": 0, "mesh": 1, "fem": 2, "solvers": 3, "analysis": 4, "io": 5,
           "problem": 6, "cli": 6, "__main__": 6, "__init__": 6, "validation": 7}
 PACKAGE = os.path.join(ROOT, "contact")

@@ -45,7 +45,10 @@ def cell_indicator(problem, x0):
     mesh's hexahedra: q1 and bbar their own elements (exact element energy); q2 and q2p1
     the octants of their elements, with the trilinear interpolant of the difference (an
     indicator, not the element's own energy). Returns (eta (nc,), sqrt(sum eta^2) over
-    ranks, the same norm of u itself)."""
+    ranks, the same norm of u itself, D (nc, 3)): D[K, a] = mu int_K |d e / d x_a|^2, the
+    part of the change that varies along axis a (trilinear e, 2 x 2 x 2 Gauss points):
+    an edge singularity along x changes e across y and z, not along x, so refining along
+    x would not reduce it (contact/adapt.py grades each axis by its own part)."""
     d, d0 = problem.displacement(problem.x), problem.displacement(x0)
     u = stress.local_values(problem.dm, d.getArray(readonly=True).reshape(-1, 3))
     e = u - stress.local_values(problem.dm, d0.getArray(readonly=True).reshape(-1, 3))
@@ -57,8 +60,12 @@ def cell_indicator(problem, x0):
     lam, mu = fem.lame(mat["young"], mat["poisson"])
     kind = "bbar" if problem.element == "bbar" else "q1"
     eta, norm = np.zeros(conn.shape[0]), np.zeros(conn.shape[0])
+    D = np.zeros((conn.shape[0], 3))
     for a in range(0, conn.shape[0], fem.CHUNK):
         c = conn[a:a + fem.CHUNK]
+        dNdx, wdet = fem.geometry(coords[c])                        # (c, g, 8, 3), (c, g)
+        G = np.matmul(dNdx.transpose(0, 1, 3, 2), e[c][:, None])    # (c, g, axis, comp)
+        D[a:a + fem.CHUNK] = mu * np.einsum("cg,cgak->ca", wdet, G * G)
         K, shape = fem.element_stiffness_shapes(coords[c], lam, mu, kind)
         for out, v in ((eta, e), (norm, u)):
             w = v[c].reshape(c.shape[0], -1)
@@ -72,7 +79,26 @@ def cell_indicator(problem, x0):
     comm = problem.comm.tompi4py()
     tot = comm.allreduce(np.array([eta.sum(), norm.sum()]))
     return np.sqrt(np.maximum(eta, 0.0)), math.sqrt(max(tot[0], 0.0)), \
-        math.sqrt(max(tot[1], 0.0))
+        math.sqrt(max(tot[1], 0.0)), D
+
+
+def slab_errors(problem, axis):
+    """Where the error lives along one axis (a box mesh): (edges, E), the cell planes of
+    this run's output cells normal to `axis` (0, 1, 2; global, sorted: the slabs between
+    them) and the indicator's part along the axis (cell_indicator's D[:, axis]) summed
+    over each slab's cells, on every rank. For contact/adapt.py (mesh.grading auto)."""
+    comm = problem.comm.tompi4py()
+    x = problem.coords[:, axis]
+    planes = np.unique(np.concatenate(comm.allgather(np.unique(x))))
+    span = planes[-1] - planes[0]
+    edges = planes[np.concatenate([[True], np.diff(planes) > 1e-9 * span])]
+    part = problem.error_indicator[3][:, axis]
+    E = np.zeros(edges.size - 1)
+    if problem.conn.shape[0]:
+        cen = x[problem.conn].mean(axis=1)
+        j = np.clip(np.searchsorted(edges, cen) - 1, 0, E.size - 1)
+        E = np.bincount(j, weights=part, minlength=E.size)
+    return edges, comm.allreduce(E)
 
 
 def indicator_summary(problem):
@@ -81,7 +107,7 @@ def indicator_summary(problem):
     eta = getattr(problem, "error_indicator", None)
     if eta is None:
         return None
-    cells, total, unorm = eta
+    cells, total, unorm = eta[:3]
     cen = problem.coords[problem.conn].mean(axis=1) if problem.conn.shape[0] else \
         np.zeros((0, 3))
     value, where = stress.peak(problem.comm.tompi4py(), cells, cen)

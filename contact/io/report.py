@@ -24,6 +24,10 @@ def summary(problem, time_total):
     s = _summary(problem, time_total)
     s["error_estimate"], s["error_estimate_note"] = estimate.of_run(problem, s)
     s["error_indicator"] = estimate.indicator_summary(problem)
+    # mesh.grading auto (contact/adapt.py): each axis's points, chosen from the error
+    # indicator of the solve at Nd = from_nd (a pilot's, taking pilot_s; or the run
+    # before's under -error_target); None: the scene's grading as written
+    s["grading"] = getattr(problem, "grading_info", None)
     return s
 
 

@@ -23,9 +23,13 @@ axis-aligned boxes (a tensor product of 1D maps).
                    phi'(0) = r): phi(t) = (r^t - 1) / (r - 1). On n cells consecutive
                    cells differ by r^(1/n): gmsh's "Using Progression q" on n cells is
                    r = q^n, exactly (its nodes (q^i - 1) / (q^n - 1)).
+    points [p_0, .., p_K]  phi(k / K) = p_k, linear in between: increasing from 0 to 1;
+                   what `auto` writes (equidistribute; scene_grading.py).
+    auto           (scene_grading.py, contact/adapt.py) the run chooses the axis's points
+                   from the error indicator of a solved coarser mesh (equidistribute).
 
-Ranges (scene.py: GRADING_RANGE): 1e-3 <= c, r <= 1e3. The q2 element's nodes are the
-vertices of the next level, phi of its lattice: the images of the element's reference
+Ranges (scene_grading.py): 1e-3 <= c, r <= 1e3; points' steps at least 1e-6. The q2
+element's nodes are the vertices of the next level, phi of its lattice: the images of the element's reference
 nodes, and the element is isoparametric (fem/element.py), so its geometry is the one the
 nodes give (an edge's middle node is not the edge's midpoint: the element map is the
 quadratic interpolant of phi, positive where phi' varies little over an element).
@@ -35,7 +39,12 @@ import numpy as np
 from contact.mesh.plex import HEX_REF, MeshError
 
 AXES = ("x", "y", "z")
-KINDS = ("bump", "progression")
+KINDS = ("bump", "progression", "points")
+#: equidistribute's safeguards: the largest ratio of cell sizes along an axis, and of
+#: neighbouring slabs' sizes
+MAX_RATIO, GROWTH = 30.0, 1.5
+#: the smallest local order equidistribute trusts (an edge singularity r^(1/2): 1/2)
+B_MIN = 0.25
 
 
 def bump(t, c):
@@ -62,18 +71,85 @@ def _ends(t, y):
     return np.where(t <= 0.0, 0.0, np.where(t >= 1.0, 1.0, np.clip(y, 0.0, 1.0)))
 
 
-MAPS = {"bump": bump, "progression": progression}
+def points(t, values):
+    """phi through (k / K, values[k]), k = 0 .. K, linear in between (a grading written out
+    by equidistribute, or by hand): values increase from 0 to 1."""
+    v = np.asarray(values, dtype=float)
+    return _ends(np.asarray(t, dtype=float),
+                 np.interp(t, np.linspace(0.0, 1.0, v.size), v))
+
+
+MAPS = {"bump": bump, "progression": progression, "points": points}
+
+
+def equidistribute(edges, errors, order, cells, coarse=None, max_ratio=MAX_RATIO,
+                   growth=GROWTH, samples=4):
+    """A grading of one axis from a solved mesh's error along it: `points` values (phi at
+    t = k / K, K = samples len(errors)) placing `cells` cells where they reduce the error
+    most.
+
+    edges (m + 1,): the solved mesh's cell planes along the axis (its slabs j, widths h_j);
+    errors (m,): the squared error indicator summed over each slab's cells, E_j; coarse
+    (m / 2,) or None: the same sums on the mesh twice as coarse (slab pairs 2J, 2J + 1).
+    Model: in slab j the error per unit length is k_j h^(2 b_j), b_j its local order: from
+    the two meshes where coarse is given (E_j(h) / E_j(2h) = 4^-b_j, in [B_MIN, order]), else
+    `order` (the element's order in the energy norm: 1 for q1, 2 for q2). Minimising the
+    total error with `cells` cells (the number of cells along the axis of the mesh to
+    build) gives h_j = (lam / (2 b_j k_j))^(1 / (2 b_j + 1)), lam such that
+    sum (h_j-width / h_j) = cells (equidistribution of the error's derivative; e.g. Huang &
+    Russell, Adaptive Moving Mesh Methods, 2011, ch. 2): a slab whose error falls slowly
+    (a singular edge) gets more of the cells the finer the mesh to build. Safeguards: no
+    cell larger than max_ratio times the smallest (a slab with no error is not emptied),
+    neighbouring slabs' cells within `growth` (the q2 element's middle node stays inside
+    the middle half of its edges). phi is the inverse of the cumulative cell density,
+    sampled at t = k / K (`samples` points a slab: linear between them, phi is its
+    inverse to ~1 / samples^2 of a slab). Errors all zero: uniform."""
+    X = np.asarray(edges, dtype=float)
+    h, E = np.diff(X), np.maximum(np.asarray(errors, dtype=float), 0.0)
+    m = E.size
+    K = samples * m
+    if not E.any():
+        return np.linspace(0.0, 1.0, K + 1)
+    b = np.full(m, float(order))
+    if coarse is not None:
+        fine = E[: 2 * (m // 2)].reshape(-1, 2).sum(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = 0.5 * np.log2(np.asarray(coarse, dtype=float) / fine)
+        r = np.clip(np.nan_to_num(r, nan=order, posinf=order, neginf=B_MIN), B_MIN, order)
+        b = np.repeat(r, 2)
+        b = np.concatenate([b, np.full(m - b.size, float(order))])
+    tiny = E.max() * 1e-12
+    k = (np.maximum(E, tiny) / h) / h ** (2 * b)          # error per length / h^(2b)
+
+    def sizes(log_lam):
+        return np.exp((log_lam - np.log(2 * b * k)) / (2 * b + 1))
+
+    lo_, hi_ = -200.0, 200.0                              # sum(h / size) falls with lam
+    for _ in range(200):
+        mid = 0.5 * (lo_ + hi_)
+        lo_, hi_ = (mid, hi_) if (h / sizes(mid)).sum() > cells else (lo_, mid)
+    w = 1.0 / sizes(0.5 * (lo_ + hi_))
+    w = np.maximum(w, w.max() / max_ratio)
+    j = np.arange(m)
+    w = (w[None, :] / growth ** np.abs(j[:, None] - j[None, :])).max(axis=1)
+    T = np.concatenate([[0.0], np.cumsum(w * h)])
+    phi = (np.interp(np.linspace(0.0, 1.0, K + 1), T / T[-1], X) - X[0]) / (X[-1] - X[0])
+    phi[0], phi[-1] = 0.0, 1.0
+    return phi
 
 
 def graded(coords, grading, lower, upper):
     """coords (n, 3) of the box [lower, upper] placed by `grading` (the scene's
     mesh.grading, validated): a new array; axes not graded are copied as they are."""
     out = np.array(coords, dtype=float, copy=True)
+    if grading == "auto" or "auto" in grading.values():
+        raise MeshError("mesh.grading auto is chosen by the command line's run (contact/"
+                        "adapt.py: a pilot's error indicator), not by the mesh")
     for axis, spec in (grading or {}).items():
         (kind, value), = spec.items()
         i, lo, hi = AXES.index(axis), float(lower[AXES.index(axis)]), float(upper[AXES.index(axis)])
         t = (out[:, i] - lo) / (hi - lo)
-        x = lo + MAPS[kind](t, float(value)) * (hi - lo)
+        x = lo + MAPS[kind](t, value) * (hi - lo)
         out[:, i] = np.where(t >= 1.0, hi, x)
     return out
 

@@ -204,7 +204,7 @@ BAD = [({"w": {"bump": 0.1}}, "unknown key 'w' in mesh.grading"),
        ({"x": {"bump": 0.0}}, "mesh.grading.x.bump must be a number in [0.001, 1000], got 0.0"),
        ({"z": {"progression": 1e4}}, "mesh.grading.z.progression must be a number in"),
        ({"y": {"bump": "a"}}, "mesh.grading.y.bump must be a number in [0.001, 1000], got 'a'"),
-       ({"x": {"bump": 0.1, "progression": 2.0}}, "mesh.grading.x.bump|progression (one) "),
+       ({"x": {"bump": 0.1, "progression": 2.0}}, "mesh.grading.x.bump|progression|points (one) "),
        ({"x": 0.1}, "mesh.grading.x must be a mapping, got 0.1"),
        ([0.1], "mesh.grading must be a mapping")]
 

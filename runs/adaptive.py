@@ -1,0 +1,135 @@
+"""Meshes graded by the run's own error indicator (contact/adapt.py) against the uniform box
+and the hand-graded one, on the paper's beam: error against whole-process time.
+
+Part 1, equal sizes: `python -m contact -element E -nd N` on the uniform box
+(`-mesh_grading uniform`), on runs/scenes/paper_beam_graded.yaml (a fixed bump toward the
+beam's ends, runs/results/graded.md) and with `-mesh_grading auto` (a pilot at Nd / 2, its
+indicator -> the grading). Part 2, as a user asks for an accuracy: `-error_target TOL
+-error_quantity Q` with `-error_refine graded` (each run graded by the one before) and
+`uniform`. True errors: the distance to the continuum values of runs/results/report.md
+(q1 Richardson from Nd = 20, 40, 80, with their own error estimates, far below the errors
+here), so the runs are checked against something they did not compute.
+
+    python runs/adaptive.py [--ranks 2] [--q1 16 32] [--q2 8 12] [--targets] [--force]
+    python runs/adaptive.py --smoke --out-dir DIR        (tests: q1 Nd 16, one rank)
+"""
+import argparse
+import os
+import sys
+
+from contact.validation import harness
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from estimate import continuum_values  # noqa: E402  (runs/estimate.py: report.md's q*)
+
+ROOT = harness.ROOT
+GRADED = os.path.join(ROOT, "runs", "scenes", "paper_beam_graded.yaml")
+MESHES = {"uniform": ["-mesh_grading", "uniform"], "bump": ["-scene", GRADED],
+          "auto": ["-mesh_grading", "auto"]}
+KEYS = ("max_displacement", "normal_force", "energy")
+#: -error_quantity -> summary key
+TARGET_KEYS = {"max_u": "max_displacement", "force": "normal_force", "energy": "energy"}
+
+
+def values(s):
+    return {"max_displacement": s["max_displacement"],
+            "normal_force": (s["contact_result"] or {}).get("normal"), "energy": s["energy"]}
+
+
+def errors(s, qstar):
+    v = values(s)
+    return {k: abs(v[k] - qstar[k][0]) / abs(qstar[k][0]) for k in KEYS}
+
+
+def estimated(s, key):
+    e = (s.get("error_estimate") or {}).get(key) or {}
+    if e.get("error") is None or not e.get("extrapolated"):
+        return None
+    return e["error"] / abs(e["extrapolated"])
+
+
+def pct(x):
+    return "n/a" if x is None else f"{100 * x:.3g} %"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ranks", type=int, default=2)
+    ap.add_argument("--q1", type=int, nargs="*", default=[16, 32])
+    ap.add_argument("--q2", type=int, nargs="*", default=[8, 12])
+    ap.add_argument("--targets", action="store_true",
+                    help="part 2: -error_target 1e-3 (each quantity) and 1e-4 (N, J), q2")
+    ap.add_argument("--max-dofs", type=int, default=1_200_000,
+                    help="part 2's -error_max_dofs")
+    ap.add_argument("--force", action="store_true")
+    ap.add_argument("--smoke", action="store_true")
+    ap.add_argument("--out-dir", default=None)
+    args = ap.parse_args(argv)
+    if args.smoke:
+        if args.out_dir is None:
+            ap.error("--smoke needs --out-dir")
+        args.ranks, args.q1, args.q2, args.targets = 1, [16], [], False
+    out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "adaptive")
+    record = os.path.join(out_dir if args.smoke else os.path.join(ROOT, "runs", "results"),
+                          "adaptive.md")
+    qstar = continuum_values()
+
+    lines = ["# Meshes graded by the run's own error indicator (issue 47)", "",
+             *harness.provenance_lines(args.ranks, argv=argv, script=__file__), "",
+             "True error = |q - q*| / |q*| against runs/results/report.md's continuum "
+             "values (" + ", ".join(f"{k} {v[0]:.8g}" for k, v in qstar.items()) + "); "
+             "estimate = the run's own (summary.json error_estimate, from its levels); "
+             "wall = whole process (mpirun included).", "",
+             "## Equal sizes: uniform, hand-graded (bump), -mesh_grading auto", "",
+             "| element | Nd | mesh | dofs | wall, s | Newton | Krylov | max \\|u\\| error "
+             "/ estimate | N error / estimate | J error / estimate |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for el, nds in (("q1", args.q1), ("q2", args.q2)):
+        for nd in nds:
+            for mesh, extra in MESHES.items():
+                run = harness.run_case(
+                    os.path.join(out_dir, f"{el}-nd{nd}-{mesh}-np{args.ranks}"),
+                    ["-element", el, "-nd", nd, "-output_formats", "json", *extra],
+                    args.ranks, force=args.force)
+                s = run.summary
+                err = errors(s, qstar)
+                it = s["iterations"]
+                lines.append(
+                    f"| {el} | {nd} | {mesh} | {s['dofs']:,} | {run.wall:.1f} | "
+                    f"{it.get('inner_total', '')} | "
+                    f"{it.get('ksp_total', '')} | " + " | ".join(
+                        f"{pct(err[k])} / {pct(estimated(s, k))}" for k in KEYS) + " |")
+    if args.targets:
+        lines += ["", "## To a target: -error_target TOL -error_quantity Q -element q2 "
+                  "-nd 4", "",
+                  "| Q | TOL | refinement | reached | runs (Nd: s so far) | dofs | wall, s "
+                  "| estimate | true error |", "|---|---|---|---|---|---|---|---|---|"]
+        for q, tol in (("max_u", 1e-3), ("force", 1e-3), ("energy", 1e-3), ("force", 1e-4),
+                       ("energy", 1e-4)):
+            for how in ("graded", "uniform"):
+                run = harness.run_case(
+                    os.path.join(out_dir, f"target-{q}-{tol:g}-{how}-np{args.ranks}"),
+                    ["-element", "q2", "-nd", 4, "-error_target", tol, "-error_quantity", q,
+                     "-error_refine", how, "-error_max_dofs", args.max_dofs,
+                     "-output_formats", "json"], args.ranks, force=args.force, check=False,
+                    timeout=1200)
+                s = run.summary
+                if s is None:
+                    lines.append(f"| {q} | {tol:g} | {how} | {run.status} | | | | | |")
+                    continue
+                t = s["error_target"]
+                key = TARGET_KEYS[q]
+                lines.append(
+                    f"| {q} | {tol:g} | {how} | {'yes' if t['reached'] else 'no'} | "
+                    + ", ".join(f"{r['nd']}: {r['time_s']:.1f}" for r in t["runs"])
+                    + f" | {s['dofs']:,} | {run.wall:.1f} | "
+                    f"{pct(t['runs'][-1]['relative_error'])} | "
+                    f"{pct(errors(s, qstar)[key])} |")
+    os.makedirs(os.path.dirname(record), exist_ok=True)
+    with open(record, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print(f"wrote {record}")
+
+
+if __name__ == "__main__":
+    main()
