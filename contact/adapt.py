@@ -6,7 +6,8 @@ cell_indicator, the change the last refinement made on each cell) shows them. Fo
 axis whose grading is `auto` (scene_grading.py; `-mesh_grading auto`: every axis):
 
   1. a pilot, the same scene at Nd / -mesh_grading_pilot with those axes uniform, is solved
-     (its own coarse-to-fine levels: two at least, for the indicator);
+     (its own coarse-to-fine levels, two where Nd has them: -c2f_levels 2 unless given;
+     the indicator needs one, the local orders two);
   2. its squared indicator is summed over the slabs of cells along the axis
      (estimate.slab_errors), and mesh/grading.py's `equidistribute` turns the sums into
      the axis's `points` (cells denser where the error is, at most -mesh_grading_max_ratio
@@ -74,7 +75,7 @@ def design(sc, solved, auto):
         cells = mesh["cells_per_nd"][i] * mesh["nd"] * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[a] = {"points": [round(float(p), 10) for p in pts]}
-        h = np.diff(pts) * (hi[i] - lo[i])
+        h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (hi[i] - lo[i])
         info[a] = {"points": g[a]["points"], "smallest": float(h.min()),
                    "largest": float(h.max()), "from_nd": solved.nd}
     mesh["grading"] = g
@@ -106,8 +107,9 @@ def graded_scene(sc, comm, auto, solved=None):
     pilot solved first, and released, where solved is None); info for summary.json's
     `grading`. The caller builds the ContactProblem once `solved` is released."""
     t0, pilot_time = time.perf_counter(), None
-    if solved is None:
-        solved = ContactProblem(pilot_scene(sc, auto), comm).solve()
+    if solved is None:       # two levels below the pilot where Nd has them: its indicator
+        with options.inserted({"c2f_levels": "2"}):         # and each slab's local order
+            solved = ContactProblem(pilot_scene(sc, auto), comm).solve()
         pilot_time = time.perf_counter() - t0
     scene, info = design(sc, solved, auto)
     nd, el = solved.nd, solved.element

@@ -92,8 +92,9 @@ def equidistribute(edges, errors, order, cells, coarse=None, max_ratio=MAX_RATIO
     errors (m,): the squared error indicator summed over each slab's cells, E_j; coarse
     (m / 2,) or None: the same sums on the mesh twice as coarse (slab pairs 2J, 2J + 1).
     Model: in slab j the error per unit length is k_j h^(2 b_j), b_j its local order: from
-    the two meshes where coarse is given (E_j(h) / E_j(2h) = 4^-b_j, in [B_MIN, order]), else
-    `order` (the element's order in the energy norm: 1 for q1, 2 for q2). Minimising the
+    the two meshes where coarse is given (E(h) / E(2h) = 4^-b over groups of 4 fine and
+    2 coarse slabs, the cells of the level below both: each level's change has its own
+    pattern inside the cells it refined; b in [B_MIN, order]), else `order` (the element's order in the energy norm: 1 for q1, 2 for q2). Minimising the
     total error with `cells` cells (the number of cells along the axis of the mesh to
     build) gives h_j = (lam / (2 b_j k_j))^(1 / (2 b_j + 1)), lam such that
     sum (h_j-width / h_j) = cells (equidistribution of the error's derivative; e.g. Huang &
@@ -112,12 +113,15 @@ def equidistribute(edges, errors, order, cells, coarse=None, max_ratio=MAX_RATIO
         return np.linspace(0.0, 1.0, K + 1)
     b = np.full(m, float(order))
     if coarse is not None:
-        fine = E[: 2 * (m // 2)].reshape(-1, 2).sum(axis=1)
+        # compared over the cells of the level below the coarse one (4 fine slabs, 2
+        # coarse): each level's change has its own pattern within the cells it refined
+        g = 4 if m % 4 == 0 else 2
+        fine = E.reshape(-1, g).sum(axis=1)
+        cs = np.asarray(coarse, dtype=float).reshape(-1, g // 2).sum(axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            r = 0.5 * np.log2(np.asarray(coarse, dtype=float) / fine)
+            r = 0.5 * np.log2(cs / fine)
         r = np.clip(np.nan_to_num(r, nan=order, posinf=order, neginf=B_MIN), B_MIN, order)
-        b = np.repeat(r, 2)
-        b = np.concatenate([b, np.full(m - b.size, float(order))])
+        b = np.repeat(r, g)
     tiny = E.max() * 1e-12
     k = (np.maximum(E, tiny) / h) / h ** (2 * b)          # error per length / h^(2b)
 
