@@ -49,7 +49,11 @@ def axes(sc):
         if how == "auto" or scene_grading.auto_axes(mesh):
             raise ValueError(f"mesh.grading auto needs a box mesh, not a {mesh['type']} mesh")
         return []
-    return list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
+    auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
+    if auto and not options.get("error_estimate"):
+        raise ValueError("mesh.grading auto grades from the error indicator, which "
+                         "-error_estimate 0 turns off")
+    return auto
 
 
 def design(sc, solved, auto):

@@ -204,7 +204,8 @@ def test_auto_grading_same_on_two_ranks(tmp_path):
     (["-mesh_grading", "auto", "-mesh_grading_pilot", 8], "the pilot needs Nd / 8 >= 1"),
     (["-mesh_grading", "auto", "-scene", f"{ROOT}/runs/scenes/hertz.yaml"],
      "mesh.grading auto needs a box mesh"),
-    (["-error_target", 0.01, "-error_refine", "local"], "-error_refine must be graded or")])
+    (["-error_target", 0.01, "-error_refine", "local"], "-error_refine must be graded or"),
+    (["-mesh_grading", "auto", "-error_estimate", 0], "which -error_estimate 0 turns off")])
 def test_bad_grading_options(tmp_path, args, words):
     p = cli(["-nd", 4, *args, "-output_dir", tmp_path])
     assert p.returncode == 1 and words in p.stderr, p.stderr
