@@ -41,7 +41,6 @@ on the partition), and each assembles its own rows of Z.
 """
 import numpy as np
 from petsc4py import PETSc
-from scipy import sparse
 
 from contact.fem.mortar import mortar_matrices
 
@@ -176,6 +175,7 @@ class ContactPair:
         (scipy) on (rows: those nodes, columns: them and the master nodes of their slave
         nodes; sorted global vertex numbers, 3 dofs each). nodal: one dof per node, every
         entry 1 (Z's node pattern)."""
+        from scipy import sparse           # (here: a one-body run loads no scipy, 9 MiB)
         rows = np.unique(cells)
         at = np.minimum(np.searchsorted(self._nodes, rows), max(self._nodes.size - 1, 0))
         slave = np.flatnonzero(self._nodes[at] == rows) if self._nodes.size else at[:0]
@@ -202,6 +202,7 @@ class ContactPair:
         the blocks these cells give A~ = Z^T A Z (u = Z u~ on their dofs and on those of
         the master nodes their slave nodes couple to), as a scipy BSR matrix of 3 x 3
         blocks; Ke None: R's node pattern (CSR, one entry per block)."""
+        from scipy import sparse
         rows, cols, Z = self._local_basis(cells, nodal=Ke is None)
         m, a = cells.shape
         k = 1 if Ke is None else 3
