@@ -1,6 +1,8 @@
 """Global matrices and vectors of the elements (contact/fem/element.py) on a DMPlex:
 preallocation, stiffness assembly, loads, Dirichlet rows and their elimination, rigid
 modes and the elasticity solver's near null space."""
+from itertools import chain
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -21,7 +23,7 @@ def _aij_family(mat_type):
     return "aij" in t and "baij" not in t
 
 
-def create_matrix(dm, conn, blocked=False):
+def create_matrix(dm, conn, blocked=False, extra=None):
     """An empty matrix (block size 3, the DM's local-to-global map) preallocated exactly
     for the Q1 pattern of the cells conn (n, 8) or (n, 27) (two nodes couple when they
     share a cell), in place of dm.createMat(), whose DMPlex preallocation walks the mesh
@@ -33,11 +35,13 @@ def create_matrix(dm, conn, blocked=False):
     with rediscretised coarse operators, which needs no MatPtAP of it), else the DM's AIJ
     type (-dm_mat_type / -mat_type). A Mat type outside the AIJ family asked for (BAIJ,
     SBAIJ, IS, dense) is refused: the Galerkin products (MatPtAP: GAMG, the multigrid of
-    q2 and the mixed split) and the SPD flag need an AIJ type in PETSc 3.18."""
+    q2 and the mixed split) and the SPD flag need an AIJ type in PETSc 3.18.
+    extra: node pairs (keys global row * global node count + column; rows of any rank)
+    beyond the cells' (a contact pair's: fem/pairs.py), counted by their rows' owners."""
     mat_type = create_matrix_type()
     _EV_PREALLOC.begin()
     try:
-        return _preallocated(dm, conn, PETSc.Mat.Type.BAIJ if blocked else mat_type)
+        return _preallocated(dm, conn, PETSc.Mat.Type.BAIJ if blocked else mat_type, extra)
     finally:
         _EV_PREALLOC.end()
 
@@ -54,7 +58,7 @@ def create_matrix_type():
     return mat_type or PETSc.Mat.Type.AIJ
 
 
-def _preallocated(dm, conn, mat_type):
+def _preallocated(dm, conn, mat_type, extra=None):
     comm = dm.getComm()
     mpi = comm.tompi4py()
     lg = dm.getLGMap()
@@ -106,9 +110,10 @@ def _preallocated(dm, conn, mat_type):
     for k0 in range(0, owned.size, step):
         rows = owned[k0:k0 + step]
         count[lgb[rows] - r0, 0], count[lgb[rows] - r0, 1] = counts(rows)
-    send = [[] for _ in range(mpi.size)]                  # the ghost rows' pairs: owners
-    for k0 in range(0, ghosts.size, rows_at_once):
-        keys = pairs(ghosts[k0:k0 + rows_at_once])
+    send = [[] for _ in range(mpi.size)]       # the ghost rows' pairs and `extra`: owners
+    ghost_keys = (pairs(ghosts[k0:k0 + rows_at_once])
+                  for k0 in range(0, ghosts.size, rows_at_once))
+    for keys in chain(ghost_keys, [] if extra is None else [np.asarray(extra, np.int64)]):
         owner = np.searchsorted(starts, keys // n_global, side="right") - 1
         for p in np.unique(owner):                                # (ranks, not nodes)
             send[p].append(keys[owner == p])
@@ -143,20 +148,23 @@ def _element_matrices(conn, coords, lam, mu, element, frame):
 
 
 def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1",
-                       lam=None, blocked=False, lattice=None, groups=None):
+                       lam=None, blocked=False, lattice=None, groups=None, pair=None):
     """Global stiffness matrix A (AIJ, or BAIJ when `blocked`; block size 3: create_matrix)
     of `element` (ELEMENTS), unconstrained; in the basis of a contact frame
     (contact/fem/frame.py: T^T A T) when one is given. lam: Lame's lambda instead of that of
     (young, poisson) (a split of the volumetric stiffness, mixed.py). lattice: the cells'
     mesh.lattice, where they are a box of identical cells on one process: then A is
     their stencil (fem/stencil.py) instead of their sum, cell by cell. groups: [(cells,
-    young, poisson)], a material per group of cells (several bodies) instead of one."""
+    young, poisson)], a material per group of cells (several bodies) instead of one. pair:
+    a contact pair (fem/pairs.py): A~ = Z^T A Z, the element matrices of the cells at its
+    slave nodes turned and added at their nodes' and the coupled master nodes' blocks
+    (pair.add_turned; preallocated: pair.pattern)."""
     lam_, mu = lame(young, poisson)
     lam = lam_ if lam is None else lam
     kind = None if blocked else create_matrix_type()
     lg, stencil_asked = dm.getLGMap(), options.get("assembly_stencil")
     if (lattice is not None and frame is None and conn.shape[1] == 8   # (a frame turns rows)
-            and groups is None
+            and groups is None and pair is None
             and dm.getComm().getSize() == 1 and stencil_asked
             and np.array_equal(lg.getBlockIndices(), np.arange(coords.shape[0]))):
         _EV_ASSEMBLE.begin()
@@ -164,16 +172,26 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         A = stencil.assemble(dm.getComm(), Ke, lattice, blocked)
         A.setLGMap(lg, lg)
     else:
-        A = create_matrix(dm, conn, blocked=True)   # AIJ types: assembled as BAIJ, converted
+        lgb = np.asarray(lg.getBlockIndices(), dtype=np.int64)
+        A = create_matrix(dm, conn, blocked=True,   # AIJ types: assembled as BAIJ, converted
+                          extra=None if pair is None else pair.pattern(lgb[conn]))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         idx_type = PETSc.IntType
         _EV_ASSEMBLE.begin()
+        turned = []                             # a pair's cells at its slave nodes
         for cells, lam_g, mu_g in ([(conn, lam, mu)] if groups is None else
                                    [(conn[g], *lame(e, p)) for g, e, p in groups]):
             for c, Ke in _element_matrices(cells, coords, lam_g, mu_g, element, frame):
-                A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
-                                           Ke.reshape(c.shape[0], -1),
-                                           addv=PETSc.InsertMode.ADD_VALUES)
+                if pair is not None:
+                    t = pair.turns(lgb[c])
+                    turned.append((lgb[c[t]], Ke[t]))
+                    c, Ke = c[~t], Ke[~t]
+                if c.shape[0]:
+                    A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
+                                               Ke.reshape(c.shape[0], -1),
+                                               addv=PETSc.InsertMode.ADD_VALUES)
+        if pair is not None and turned:
+            pair.add_turned(A, *(np.concatenate(x) for x in zip(*turned)))
         A.assemble()
         if kind is not None:
             _to_aij(A)

@@ -4,9 +4,11 @@ scene -> mesh (a level of hierarchy.py: a box refined in parallel, a file DMPlex
 gmsh; distributed with METIS) -> boundary
 parts (faces on planes or gmsh physical groups; `mesh.rotate` turns the mesh after they are
 found) -> contact set and its frame (contactset.py, frame.py: a foundation off the axes
-turns the contact nodes' dofs to (t1, t2, n)) -> A (Q1 stiffness in that basis), the load
-groups (the parts sharing a loading ramp, each with its load b_g = f_g - A u_D,g), b = sum_g
-b_g, the prescribed displacement u_D, and the clamped rows eliminated (A and every b_g).
+turns the contact nodes' dofs to (t1, t2, n); a contact pair's change of basis Z,
+pairs.py) -> A (Q1 stiffness in that basis: T^T A T or Z^T A Z, turned cell by cell), the
+load groups (the parts sharing a loading ramp, each with its load b_g = f_g - A u_D,g), b =
+sum_g b_g, the prescribed displacement u_D, and the clamped rows eliminated (A and every
+b_g).
 Nothing here changes after set-up: the driver (driver.py) builds its own load-increment
 vectors, and the solution lives in the problem (problem.py).
 """
@@ -143,15 +145,16 @@ class Discretisation:
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
                                         element=self.element, blocked=blocked,
-                                        lattice=self.lattice, groups=self._materials())
+                                        lattice=self.lattice, groups=self._materials(),
+                                        pair=self.pair)   # (A~ = Z^T A Z: pairs.py)
         self._loads()
         self.contact_diagonal = self._contact_diagonal()
         # the rigid-body modes are GAMG's: the multigrid with rediscretised levels (BAIJ)
-        # has no use for them (6 Vecs of A's size: 0.05 kB per dof)
+        # has no use for them (6 Vecs of A's size: 0.05 kB per dof; a pair's 12)
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame,
                                                   near_nullspace=not blocked and
                                                   self.pair is None)
-        if self.pair is not None:                # each body's rigid modes, in the pair's basis
+        if self.pair is not None and not blocked:   # each body's, in the pair's basis
             self.nullspace = self.pair.rigid_body_nullspace(self.coordinates,
                                                             self.body_masks())
             self.A.setNearNullSpace(self.nullspace)
@@ -161,8 +164,7 @@ class Discretisation:
         """[(cells, young, poisson)] per body, or None (one body: the scene's material)."""
         if self.bodies is None:
             return None
-        return [(np.flatnonzero(self.body_of == i), b["material"]["young"],
-                 b["material"]["poisson"]) for i, b in enumerate(self.bodies.values())]
+        return mesh_bodies.material_groups(self.bodies, self.body_of)
 
     def cell_lame(self):
         """(lambda, mu) per local cell (several bodies), or None (the scene's material)."""
@@ -317,11 +319,15 @@ class Discretisation:
                                   if bnd[n]["type"] == "traction"],
                                  body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0],
                                  self.roles)
+            if self.pair is not None:            # the loops' basis: Z^T b (pairs.py)
+                self.pair.transform_load(bg)
             self.to_frame(bg)
             masked = [(n, (f, c, v if n in mine else [0.0] * 3)) for n, (f, c, v) in named]
             if nonzero(masked):
                 u_g = self.to_frame(fem.dirichlet_values(dm, coords.shape[0],
                                                          [c for _, c in masked]))
+                if self.pair is not None:        # A = Z^T A Z: A~ Z^-1 u = Z^T A u
+                    self.pair.from_displacement(u_g)
                 lift = bg.duplicate()
                 self.A.mult(u_g, lift)
                 bg.axpy(-1.0, lift)              # b_g - A u_D,g: solve for u - u_D
@@ -336,12 +342,14 @@ class Discretisation:
         #: b = f - A u_D) leaves out 1/2 u_D.A u_D - f.u_D = -1/2 u_D.A u_D - b.u_D
         self.energy_shift = 0.0
         if self.u_D is not None:
+            w = self.u_D if self.pair is None else self.pair.from_displacement(self.u_D.copy())
             Au = self.A.createVecLeft()
-            self.A.mult(self.u_D, Au)
-            self.energy_shift = -0.5 * Au.dot(self.u_D) - self.b.dot(self.u_D)
+            self.A.mult(w, Au)
+            self.energy_shift = -0.5 * Au.dot(w) - self.b.dot(w)
             Au.destroy()
-        if self.pair is not None:                # u = Z u~: A~ = Z^T A Z, b~ = Z^T b (pairs.py)
-            self._pair_basis()
+            if self.pair is not None:            # its relative part joins the gap
+                self._pair_gap(w)
+                w.destroy()
         self.diag_scale = fem.eliminate_dirichlet(self.A, self.b, self.clamped)
         zeros = np.zeros(len(self.clamped))
         for _, _, bg in self.load_groups:        # the eliminated rows carry no load
@@ -351,22 +359,14 @@ class Discretisation:
             self.load_groups[0][2].destroy()
             self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
 
-    def _pair_basis(self):
-        """A, b and the load groups in the contact pair's basis; a prescribed displacement's
-        relative part (n . Z^-1 u_D at the slave nodes) joins the gap."""
-        A = self.pair.transform_matrix(self.A)
-        self.A.destroy()
-        self.A = A
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-        for v in {id(v): v for v in [self.b] + [bg for _, _, bg in self.load_groups]}.values():
-            self.pair.transform_load(v)
-        if self.u_D is not None:
-            rel, c = self.pair.from_displacement(self.u_D.copy()), self.cs.vec()
-            self.cs.gather(rel, c, 2)
-            self.cs.gap.axpy(1.0, c)
-            self.cs.has_gap = self.cs.gap.norm(PETSc.NormType.INFINITY) > 0.0
-            rel.destroy()
-            c.destroy()
+    def _pair_gap(self, rel):
+        """A prescribed displacement's relative part, n . (Z^-1 u_D) at the slave nodes
+        (rel = Z^-1 u_D), joins the contact pair's gap."""
+        c = self.cs.vec()
+        self.cs.gather(rel, c, 2)
+        self.cs.gap.axpy(1.0, c)
+        self.cs.has_gap = self.cs.gap.norm(PETSc.NormType.INFINITY) > 0.0
+        c.destroy()
 
     def to_frame(self, vec):
         """In place: a Vec in x, y, z -> the loops' basis (the same Vec without a frame)."""

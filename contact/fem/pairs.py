@@ -24,9 +24,20 @@ node), for the rigid-body near-nullspace of A~ (GAMG), the coarse-to-fine start 
 multigrid's finest interpolation. Rows and columns of clamped dofs are left out of E: a clamped
 slave component stays u~ = u (0), a clamped master component contributes its 0.
 
+A~ is assembled as it stands (fem/assembly.py, `add_turned`): Z differs from D only at the
+slave nodes, so only the cells that hold one change; each rank sums its such cells'
+element matrices on their nodes (A_t, scipy) and adds Z_t^T A_t Z_t, Z_t being Z's rows
+at those nodes, into A~'s rows of the cells' nodes and the master nodes they couple to
+(global indices: any rank's), which `pattern` preallocates. The one-body stiffness (BAIJ)
+then holds, and so does the multigrid's rediscretised first coarse operator (multigrid.py):
+(Z^-1 P)^T A~ (Z^-1 P) = P^T A P. PETSc's product Z^T A Z (`transform_matrix`), into AIJ
+with Galerkin coarse operators, was the way before; it is the tests' reference now
+(runs/results/two-bodies.md: the times of both).
+
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
-mesh) are gathered on every rank, every rank computes the same mortar matrices, and each
-assembles its own rows of Z.
+mesh) are gathered on every rank, every rank computes the same mortar matrices (and the
+same clamped dofs of the pair's nodes: which of E's entries are left out does not depend
+on the partition), and each assembles its own rows of Z.
 """
 import numpy as np
 from petsc4py import PETSc
@@ -49,6 +60,14 @@ def _gathered(comm, gidx, coords, faces):
     return X[first], inv.reshape(-1, 4), ids
 
 
+def _held(comm, clamped, nodes):
+    """The clamped dofs (global) of the vertices `nodes` (global numbers), every rank's:
+    whether E leaves out an entry must not hang on which rank owns its column."""
+    cl = np.asarray(clamped, dtype=np.int64)
+    parts = comm.tompi4py().allgather(cl[np.isin(cl // 3, nodes)])
+    return np.unique(np.concatenate(parts))
+
+
 class ContactPair:
     """The change of basis Z = I + E of a slave and a master surface (module docstring).
 
@@ -59,6 +78,9 @@ class ContactPair:
     def __init__(self, dm, coords, slave, master, axis, sign, clamped):
         comm = dm.getComm()
         self.comm = comm
+        g = dm.createGlobalVec()
+        self._rows, self.n_nodes = g.getOwnershipRange(), g.getSize() // 3
+        g.destroy()
         gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
         xs, fs, sid = _gathered(comm, gidx, coords, slave)
         xm, fm, mid = _gathered(comm, gidx, coords, master)
@@ -87,30 +109,47 @@ class ContactPair:
         #: d = -1 on the slave nodes' axis dof where n = -e_axis (u~ . e_axis = n . g_j),
         #: so that the contact set reads n as +e_axis (contactset.py; `sign` for output)
         self.sign = -1.0 if sign > 0 else 1.0
+        held = _held(comm, clamped, np.union1d(sid, mid))
+        self._turning(self._coupling(sid[r], mid[c], v, held), sid[ok])
         flip = 3 * sid[ok] + axis if self.sign < 0 else np.zeros(0, dtype=np.int64)
-        self.Z, self.Zinv = (self._assemble(dm, sid[r], mid[c], v, clamped, flip, inverse)
-                             for inverse in (False, True))
+        self.Z, self.Zinv = (self._assemble(flip, inverse) for inverse in (False, True))
 
-    def _assemble(self, dm, srow, mcol, val, clamped, flip, inverse):
+    def _coupling(self, srow, mcol, val, held):
+        """E by node: (slave node, master node, P_jm, (n, 3) the components kept) of each
+        entry, the components of a clamped slave or master dof left out (held: the
+        clamped dofs of the pair's nodes, all ranks'; the module docstring)."""
+        keep = ~np.isin(3 * srow[:, None] + np.arange(3), held)
+        keep &= ~np.isin(3 * mcol[:, None] + np.arange(3), held)
+        return srow, mcol, val, keep
+
+    def _turning(self, coupling, nodes):
+        """Z's rows at the slave nodes `nodes` (global, sorted) in padded node arrays, for
+        turning element matrices (element_matrices): the master nodes (-1 padded), P_jm
+        per component kept, and D's diagonal."""
+        srow, mcol, val, keep = self._e = coupling
+        self._nodes = nodes
+        at = np.searchsorted(nodes, srow)
+        slot = np.arange(srow.size) - np.searchsorted(srow, srow)     # (srow sorted)
+        width = int(slot.max()) + 1 if slot.size else 1
+        self._masters = np.full((nodes.size, width), -1, dtype=np.int64)
+        self._weights = np.zeros((nodes.size, width, 3))
+        self._masters[at, slot] = mcol
+        self._weights[at, slot] = val[:, None] * keep
+        self._d = np.ones((nodes.size, 3))
+        if self.sign < 0:
+            self._d[:, self.axis] = -1.0
+
+    def _assemble(self, flip, inverse):
         """Z = D + E (inverse: Z^-1 = D - D E) as an AIJ Mat (block size 3), D the diagonal
         of 1 and -1 (at the dofs `flip`)."""
-        g = dm.createGlobalVec()
-        lo, hi = g.getOwnershipRange()
-        N = g.getSize()
-        g.destroy()
-        rows = (3 * srow[:, None] + np.arange(3)).ravel()
-        cols = (3 * mcol[:, None] + np.arange(3)).ravel()
-        vals = np.repeat(val, 3)
-        held = np.zeros(hi - lo, dtype=bool)
-        cl = np.asarray(clamped, dtype=np.int64)
-        held[cl[(cl >= lo) & (cl < hi)] - lo] = True
+        (lo, hi), N = self._rows, 3 * self.n_nodes
+        srow, mcol, val, keep = self._e
+        k = np.nonzero(keep)
+        rows, cols, vals = 3 * srow[k[0]] + k[1], 3 * mcol[k[0]] + k[1], val[k[0]]
         d = np.ones(hi - lo)
         d[flip[(flip >= lo) & (flip < hi)] - lo] = -1.0
         mine = (rows >= lo) & (rows < hi)
         rows, cols, vals = rows[mine], cols[mine], vals[mine]
-        heldcol = np.isin(cols, cl)
-        keep = ~held[rows - lo] & ~heldcol
-        rows, cols, vals = rows[keep], cols[keep], vals[keep]
         if inverse:
             vals = -d[rows - lo] * vals
         # CSR of the owned rows: D and E's entries (columns sorted per row)
@@ -126,8 +165,92 @@ class ContactPair:
         Z.assemble()
         return Z
 
+    def turns(self, cells):
+        """Which cells (global vertex numbers, (m, a)) hold a slave node: their element
+        matrices are turned (add_turned)."""
+        return np.isin(cells, self._nodes).any(axis=1)
+
+    def _local_basis(self, cells, nodal=False):
+        """Z's rows at the nodes of `cells` (global vertex numbers, (m, a)) as a CSR matrix
+        (scipy) on (rows: those nodes, columns: them and the master nodes of their slave
+        nodes; sorted global vertex numbers, 3 dofs each). nodal: one dof per node, every
+        entry 1 (Z's node pattern)."""
+        from scipy import sparse           # (here: a one-body run loads no scipy, 9 MiB)
+        rows = np.unique(cells)
+        at = np.minimum(np.searchsorted(self._nodes, rows), max(self._nodes.size - 1, 0))
+        slave = np.flatnonzero(self._nodes[at] == rows) if self._nodes.size else at[:0]
+        mast = self._masters[at[slave]]                                    # (s, K), -1 pad
+        cols = np.union1d(rows, mast[mast >= 0])
+        i, j = np.nonzero(mast >= 0)
+        r = np.concatenate([np.arange(rows.size), slave[i]])
+        c = np.concatenate([np.searchsorted(cols, rows), np.searchsorted(cols, mast[i, j])])
+        if nodal:
+            return rows, cols, sparse.csr_matrix((np.ones(r.size), (r, c)),
+                                                 shape=(rows.size, cols.size))
+        d = np.ones((rows.size, 3))
+        d[slave] = self._d[at[slave]]
+        v = np.concatenate([d, self._weights[at[slave]][i, j]])
+        dof = np.arange(3)
+        Z = sparse.csr_matrix((v.ravel(), ((3 * r[:, None] + dof).ravel(),
+                                           (3 * c[:, None] + dof).ravel())),
+                              shape=(3 * rows.size, 3 * cols.size))
+        return rows, cols, Z
+
+    def _turned(self, cells, Ke=None):
+        """(nodes, R): R = Z^T A_t Z on the nodes `nodes` (global, sorted), A_t the sum of
+        the element matrices Ke (m, 3 a, 3 a) of `cells` (global vertex numbers, (m, a)):
+        the blocks these cells give A~ = Z^T A Z (u = Z u~ on their dofs and on those of
+        the master nodes their slave nodes couple to), as a scipy BSR matrix of 3 x 3
+        blocks; Ke None: R's node pattern (CSR, one entry per block)."""
+        from scipy import sparse
+        rows, cols, Z = self._local_basis(cells, nodal=Ke is None)
+        m, a = cells.shape
+        k = 1 if Ke is None else 3
+        dof = (k * np.searchsorted(rows, cells)[:, :, None] + np.arange(k)).reshape(m, k * a)
+        At = sparse.csr_matrix((np.ones(m * a * a) if Ke is None else Ke.ravel(),
+                                (np.repeat(dof, k * a, axis=1).ravel(),
+                                 np.tile(dof, (1, k * a)).ravel())),
+                               shape=(Z.shape[0], Z.shape[0]))
+        R = Z.T.tocsr() @ (At @ Z)
+        return cols, (R if Ke is None else R.tobsr(blocksize=(3, 3)))
+
+    def pattern(self, cells):
+        """The (row, column) node pairs (global) that the cells among `cells` (m, a) at
+        slave nodes add to A~, as keys row * n + column (n: the global node count)."""
+        cells = cells[self.turns(cells)]
+        if cells.shape[0] == 0:
+            return np.zeros(0, dtype=np.int64)
+        nodes, R = self._turned(cells)
+        rows = np.repeat(nodes, np.diff(R.indptr))
+        return rows * self.n_nodes + nodes[R.indices]
+
+    def add_turned(self, A, cells, Ke, chunk=4096):
+        """Adds to A (ADD_VALUES, global block indices: the coupled master nodes may be any
+        rank's) the blocks of A~ = Z^T A Z that the element matrices Ke (m, 3 a, 3 a) of
+        cells (global vertex numbers, (m, a)) at slave nodes give (preallocated:
+        pattern); the rows in chunks of `chunk` nodes (padded arrays)."""
+        if cells.shape[0] == 0:
+            return
+        nodes, R = self._turned(cells, Ke)
+        n = np.diff(R.indptr)
+        for r0 in range(0, nodes.size, chunk):
+            r1 = min(r0 + chunk, nodes.size)
+            k = n[r0:r1]
+            W = int(k.max()) if k.size else 0
+            cols = np.full((r1 - r0, W), -1, dtype=PETSc.IntType)
+            vals = np.zeros((r1 - r0, W, 3, 3))
+            i = np.repeat(np.arange(r1 - r0), k)
+            j = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)
+            blk = slice(R.indptr[r0], R.indptr[r1])
+            cols[i, j] = nodes[R.indices[blk]]
+            vals[i, j] = R.data[blk]
+            A.setValuesBlockedRCV(nodes[r0:r1, None].astype(PETSc.IntType), cols,
+                                  vals.transpose(0, 2, 1, 3).reshape(r1 - r0, -1),
+                                  addv=PETSc.InsertMode.ADD_VALUES)
+
     def transform_matrix(self, A):
-        """A~ = Z^T A Z (a new Mat; A is left as it is)."""
+        """A~ = Z^T A Z by PETSc's product (a new Mat; A is left as it is): the reference
+        of the stiffness assembled in this basis (element_matrices; tests)."""
         return A.ptap(self.Z)          # (petsc_compat: ptap on 3.18 and 3.26)
 
     @staticmethod

@@ -92,6 +92,13 @@ def cell_bodies(bodies, conn, coords):
     return out
 
 
+def material_groups(bodies, body_of):
+    """[(cells, young, poisson)] per body: the local cells of each (body_of: cell_bodies'),
+    for fem.assemble_stiffness's groups."""
+    return [(np.flatnonzero(body_of == i), b["material"]["young"], b["material"]["poisson"])
+            for i, b in enumerate(bodies.values())]
+
+
 def body_faces(conn, coords, body_of, body, axis, value, tol=1e-9):
     """(nf, 4) local faces on the plane x[axis] = value of the cells of body index `body`,
     each counter-clockwise about the body's outward normal."""

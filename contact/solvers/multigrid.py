@@ -6,12 +6,13 @@ P^T K P, so the coarse levels see whatever the fine operator is: the stiffness A
 clamped rows eliminated, or the Newton Jacobian with its contact rows changed
 (contact/solvers/coulomb.py). The finest interpolation is turned into the problem's basis (T^T P
 with a contact frame, contact/fem/frame.py; Z^-1 P with a contact pair, fem/pairs.py, whose coarse
-levels keep x, y, z: the Galerkin operators see the pair through the finest one) and is
-zero on the clamped rows (a coarse
+levels keep x, y, z: the coarse operators see the pair through the finest one, as
+(Z^-1 P)^T Z^T A Z (Z^-1 P) = P^T A P) and is zero on the clamped rows (a coarse
 correction never moves a clamped dof).
 
 Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
-  BAIJ (q1 in the Newton mode, the default): the first coarse level's stiffness A_c is
+  BAIJ (q1 in the Newton mode, the default; several bodies and a contact pair too, A_c
+      with each body's material): the first coarse level's stiffness A_c is
       assembled on its own mesh (rediscretised) and the fine operator K = A + D (D: the
       Jacobian's changes, in the contact rows only) gives P^T K P = A_c + P^T D P: for the
       nested Q1 spaces P^T A P = A_c on the free dofs (P is zero on the clamped columns
@@ -43,6 +44,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem, mesh, options, petsc_compat
+from contact.mesh import bodies as mesh_bodies
 from contact.solvers import line_smoother
 
 #: the coarsest level is factored (LU) up to this many dofs, else one GAMG cycle solves it.
@@ -58,7 +60,9 @@ COARSE_LU_MAX_SPLIT = 30000
 DEFAULTS = {"pc_mg_galerkin": "both"}
 #: the KSPs whose preconditioner is this multigrid (coulomb.py, elasticity_ksp)
 PREFIXES = ("newton_", "elastic_")
-#: SUBSET_NONZERO_PATTERN: the correction P^T D P lies in A_c's pattern
+#: SUBSET_NONZERO_PATTERN: the correction P^T D P lies in A_c's pattern (with a contact
+#: pair once A_c has taken in its first one's: the slave rows of Z^-1 P reach the master's
+#: coarse nodes, which A_c of two separate bodies does not couple to the slave's)
 SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 #: the Galerkin products P^T K P without the intermediate K P kept (PETSc's "allatonce",
 #: for parallel matrices; not for GAMG, whose set-up it slows 3x):
@@ -74,8 +78,7 @@ def blocked(scene, level_index, element):
     products), GPU Vecs, another preconditioner (-newton_pc_type gamg, ...) or its own
     Galerkin setting (-newton_pc_mg_galerkin)."""
     opts = PETSc.Options()
-    if (level_index == 0 or element != "q1" or scene["mesh"]["type"] == "bodies"
-            or options.solver_mode(scene) != "newton"
+    if (level_index == 0 or element != "q1" or options.solver_mode(scene) != "newton"
             or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
     for prefix in PREFIXES:
@@ -96,8 +99,9 @@ class Multigrid:
     frame (contact/fem/frame.py, or None) and clamped (owned rows in the problem's basis) as
     the discretisation's. Mats are built on first use and shared by every solve.
     rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz, the
-    scene's mesh.rotate or None) for a first coarse operator assembled on the level below
-    (the module docstring; prepare); clamped_xyz: the clamped rows in x, y, z."""
+    scene's mesh.rotate or None, the scene's bodies or None) for a first coarse operator
+    assembled on the level below (the module docstring; prepare); clamped_xyz: the
+    clamped rows in x, y, z; bodies: {name: box}, each with its own material."""
 
     def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None,
                  pair=None):
@@ -140,13 +144,15 @@ class Multigrid:
         coarse dofs on the clamped parts (P of the hierarchy, in x, y, z)."""
         if not self.rediscretised or self.coarse is not None:
             return
-        young, poisson, clamped_xyz, rotate = self._rediscretise
+        young, poisson, clamped_xyz, rotate, bodies = self._rediscretise
         lv = self.hierarchy.levels[self.level - 1]
         # the level's coordinates as read; a turned mesh (mesh.rotate) is assembled turned
         # (it was not: 35 Krylov iterations against 19 on the block_incline scene at Nd 24)
         coords = lv.coords if rotate is None else mesh.turned(lv.coords, **rotate)
+        groups = None if bodies is None else mesh_bodies.material_groups(
+            bodies, mesh_bodies.cell_bodies(bodies, lv.conn, lv.reference))
         A_c = fem.assemble_stiffness(lv.dm, lv.conn, coords, young, poisson,
-                                     lattice=lv.lattice)
+                                     lattice=lv.lattice, groups=groups)
         P = self.hierarchy.prolongation(self.level)
         m, free_c = P.createVecLeft(), P.createVecRight()
         m.set(0.0)
@@ -250,8 +256,10 @@ class Multigrid:
             self._added = False
         if D is None:
             return
+        widen = self._C is None and self.pair is not None
         self._C = D.ptap(self.interpolation(self.level), result=self._C)
-        self.coarse.axpy(1.0, self._C, SUBSET)
+        self.coarse.axpy(1.0, self._C, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+                         if widen else SUBSET)
         self._added = True
 
     def release(self):
@@ -304,7 +312,7 @@ def for_problem(disc, rediscretise=False):
     mat = disc.scene["material"]
     return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped,
                      (mat["young"], mat["poisson"], disc.clamped_xyz,
-                      disc.scene["mesh"].get("rotate")) if rediscretise else None,
+                      disc.scene["mesh"].get("rotate"), disc.bodies) if rediscretise else None,
                      pair=disc.pair)
 
 

@@ -117,9 +117,9 @@ def test_patch_fails_without_the_mortar_projection(comm, monkeypatch):
     """The patch test sees the coupling: with the master's motion left out of the relative
     displacement (E = 0: the punch on a rigid plane) u is off by the base's compression."""
     from contact.fem import pairs
-    real = pairs.ContactPair._assemble
-    monkeypatch.setattr(pairs.ContactPair, "_assemble",
-                        lambda self, dm, r, c, v, *rest: real(self, dm, r, c, 0.0 * v, *rest))
+    real = pairs.ContactPair._coupling          # (E's entries: Z's and the stiffness's)
+    monkeypatch.setattr(pairs.ContactPair, "_coupling",
+                        lambda self, r, c, v, *rest: real(self, r, c, 0.0 * v, *rest))
     pr = solve(scenes.validate(two_blocks(young=(3.0, 1.0))), comm)
     xyz, u = gather(pr)[:2]
     off = np.abs(xyz[:, 2] - 0.5) > 1e-12
@@ -234,3 +234,103 @@ def test_multigrid_and_coarse_start_on_a_pair(comm):
     (x1, u1), (x0, u0) = (gather(r)[:2] for r in runs)
     o1, o0 = (np.lexsort(np.round(x, 9).T) for x in (x1, x0))   # (refined: rounded places)
     assert np.allclose(x1[o1], x0[o0]) and rel_err(u1[o1], u0[o0]) < 1e-8
+
+
+def _sheared(slave="punch"):
+    """The punch pushed down and sideways with F = 0.3 on a wider base (no node meets a
+    node; stick and slip nodes), `slave` the slave side."""
+    sc = two_blocks(friction=0.3, punch_cells=2, base_cells=3, push=(0.002, 0.002, -0.004),
+                    base=((-0.1, -0.1), (1.2, 1.2)))
+    if slave == "base":
+        sc["boundary"]["interface"] = {"type": "contact", "body": "base",
+                                       "plane": ["z", 0.5], "master": {"body": "punch"}}
+    return sc
+
+
+@pytest.mark.parametrize("slave, symmetric", [("punch", False), ("base", False),
+                                              ("punch", True)])
+def test_stiffness_assembled_in_the_pair_basis(comm, slave, symmetric):
+    """The stiffness assembled in the pair's basis (the slave nodes' cells turned by Z,
+    fem/pairs.py add_turned, into BAIJ preallocated by pair.pattern) against PETSc's
+    product Z^T A Z of the stiffness in x, y, z: equal to rounding (1e-12), before the
+    clamped rows' elimination, with the slave face up or down (D = -1 on its normal
+    dof) and with clamped slave and master dofs (the symmetry planes); any rank count
+    (the interface cut by the partition)."""
+    from petsc4py import PETSc
+
+    from contact import fem, options
+    from contact.fem.discretisation import Discretisation
+    from contact.mesh.hierarchy import MeshHierarchy
+    sc = two_blocks(friction=0.3, punch_cells=4) if symmetric else _sheared(slave)
+    sc["mesh"] = {"nd": 2}
+    sc = scenes.validate(sc)
+    with options.inserted({"mesh_refine": "1", "c2f_levels": "0"}):
+        h = MeshHierarchy(sc, comm, 0)
+        d = Discretisation(sc, comm, h, -1, blocked=True)
+    assert fem.is_blocked(d.A) and d.pair is not None
+    mat = sc["material"]
+    args = (d.dm, d.elements, d.coords, mat["young"], mat["poisson"])
+    A = fem.assemble_stiffness(*args, groups=d._materials())
+    At = fem.assemble_stiffness(*args, groups=d._materials(), blocked=True, pair=d.pair)
+    ref = d.pair.transform_matrix(A)
+    diff = At.convert(PETSc.Mat.Type.AIJ, PETSc.Mat())
+    diff.axpy(-1.0, ref, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    inf = PETSc.NormType.INFINITY
+    assert diff.norm(inf) <= 1e-12 * ref.norm(inf)
+    E = ref.duplicate(copy=True)                 # the coupling is in it: not A itself
+    E.axpy(-1.0, A, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    assert E.norm(inf) > 1e-3 * ref.norm(inf)
+
+
+def _on_free(M, G, free):
+    """|M v - G v| / |G v| at the free dofs for a random v on them."""
+    out = []
+    v = G.createVecRight()
+    v.setRandom()
+    v.pointwiseMult(v, free)
+    for K in (M, G):
+        y = K.createVecLeft()
+        K.mult(v, y)
+        y.pointwiseMult(y, free)
+        out.append(y)
+    out[0].axpy(-1.0, out[1])
+    return out[0].norm() / out[1].norm()
+
+
+def test_rediscretised_coarse_operator_on_a_pair(comm):
+    """The pair's default multigrid (BAIJ, multigrid.py): its first coarse operator,
+    assembled on the coarse mesh with each body's material, is the Galerkin product
+    (Z^-1 P)^T A~ (Z^-1 P) = P^T A P on the free coarse dofs; with the Newton Jacobian's
+    contact rows (A_c + P~^T D P~ against P~^T K P~) at a state off the solution (stick
+    and slip nodes) too."""
+    from petsc4py import PETSc
+
+    from contact import fem, options
+    sc = _sheared()
+    sc["bodies"]["base"]["material"]["young"] = 3.0            # two materials
+    sc["mesh"] = {"nd": 2}
+    with options.inserted({"mesh_refine": "1", "c2f_levels": "0"}):
+        pr = solve(scenes.validate(sc), comm)
+    n, mg = pr.loops.inner, pr.solvers.multigrid
+    assert pr.converged and mg.rediscretised and fem.is_blocked(pr.A)
+    P = mg.interpolation(pr.level)
+    x = pr.x.copy()
+    noise = x.duplicate()
+    noise.setRandom()
+    noise.pointwiseMult(noise, n.free)
+    x.axpy(0.05 * x.norm() / noise.norm(), noise)
+    _, st = n._state(x, n.r)
+    mpi = pr.comm.tompi4py()
+    assert mpi.allreduce(int(st["slip"].sum())) > 0 and mpi.allreduce(int(st["stick"].sum()))
+    try:
+        K, _ = n._system(st)
+        G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
+        mg._correct(n.jac.D)
+        assert _on_free(mg.coarse, G, mg._free_c) < 1e-12
+    finally:
+        n.jac.restore()
+        mg.release()
+    # (last, as in test_multigrid: on 2 ranks, after MatConvert of the MPIBAIJ A the
+    # Jacobian's restore of its contact rows failed with "new nonzero")
+    G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
+    assert _on_free(mg.coarse, G, mg._free_c) < 1e-12
