@@ -181,3 +181,49 @@ only_in_parallel = pytest.mark.skipif(MPI.COMM_WORLD.size == 1,
 def rel_err(a, b):
     a, b = np.asarray(a), np.asarray(b)
     return np.abs(a - b).max() / max(np.abs(b).max(), 1e-300)
+
+
+def _masked(M, free, v):
+    """M (free v) at the free dofs (0 elsewhere)."""
+    y, fv = M.createVecLeft(), v.copy()
+    fv.pointwiseMult(fv, free)
+    M.mult(fv, y)
+    y.pointwiseMult(y, free)
+    return y
+
+
+def _same_on_free(M, G, free):
+    v = G.createVecRight()
+    v.setRandom()
+    y, g = _masked(M, free, v), _masked(G, free, v)
+    y.axpy(-1.0, g)
+    return y.norm() / g.norm()
+
+
+def coarse_operator_errors(pr):
+    """The rediscretised multigrid's first coarse operator of a solved problem `pr` against
+    PETSc's Galerkin products (relative, on the free coarse dofs): (A_c + P^T D P against
+    P^T K P, K the Newton Jacobian at a state off the solution with stick and slip nodes;
+    A_c against P^T A P). tests/solvers/test_multigrid.py, tests/fem/test_pairs.py."""
+    n, mg = pr.loops.inner, pr.solvers.multigrid
+    P = mg.interpolation(pr.level)
+    x = pr.x.copy()
+    noise = x.duplicate()
+    noise.setRandom()
+    noise.pointwiseMult(noise, n.free)
+    x.axpy(0.05 * x.norm() / noise.norm(), noise)
+    _, st = n._state(x, n.r)
+    mpi = pr.comm.tompi4py()
+    assert mpi.allreduce(int(st["slip"].sum())) > 0 and mpi.allreduce(int(st["stick"].sum()))
+    try:
+        K, _ = n._system(st)
+        G = K.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
+        mg._correct(n.jac.D)
+        jacobian = _same_on_free(mg.coarse, G, mg._free_c)
+    finally:
+        n.jac.restore()
+        mg.release()
+    # (last: on 2 ranks, after MatConvert of the MPIBAIJ A the Jacobian's restore of its
+    # contact rows failed with "new nonzero")
+    G = pr.A.convert(PETSc.Mat.Type.AIJ, PETSc.Mat()).ptap(P)
+    return jacobian, _same_on_free(mg.coarse, G, mg._free_c)
