@@ -314,7 +314,8 @@ def cases_rubber():
     """The default solver on nearly incompressible bodies: the paper's beam (q2p1 at N = 4,
     bbar at Nd = 8) and Hertz (q2p1 at nd = 2, bbar at nd = 3), nu from 0.49 to
     0.4999999: converged to -newton_rtol or to the residual's round-off floor
-    (CONVERGED_ROUNDOFF), the certified residuals within -check_tol."""
+    (CONVERGED_ROUNDOFF), the certified residuals within -check_tol; bbar past
+    lambda / mu = 1e6 (nu = 0.4999999) refused before its first solve, naming q2p1."""
     hz = ["-scene", os.path.join(SCENES, "hertz.yaml")]
     out = []
     for el, n_beam, n_hertz in (("q2p1", 4, 2), ("bbar", 8, 3)):

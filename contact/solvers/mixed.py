@@ -69,12 +69,28 @@ LAMBDA_SPLIT = 4.0
 EW_MAX, EW_LAMBDA = 0.01, 500.0
 #: a failed linear solve of a bbar body beyond this lambda / mu names q2p1 (failure_hint)
 BBAR_LAMBDA_MU = 1e5
+#: a bbar body beyond this lambda / mu (nu > 0.4999995) is refused before its first solve,
+#: unless the command line chose the solves' preconditioner (a direct one: pc_given). Q1-P0's
+#: inf-sup constant falls with h, and the iterations with it: Hertz at nu = 0.4999999
+#: (lambda / mu = 5e6) converged at nd 3 (1138 Krylov iterations, selfp + SOR) and not at
+#: nd 4 (over 1000 a solve from the fifth Newton step; GMRES(300) and the diagonal S_p:
+#: 2371 in 31 s; q2p1 there: 5 steps); the beam converges (Nd 8), which a set-up cannot tell
+BBAR_REFUSE_LAMBDA_MU = 1e6
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
 DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
             "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg",
             "fieldsplit_u_pc_gamg_reuse_interpolation": "true", "ksp_gmres_restart": "100",
             "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"}
+#: bbar's pressure-block preconditioner instead of the diagonal S_p (command line wins):
+#: PETSc's selfp, -Cq - R Gq diag(A_g)^-1 Gq^T (a cell-to-cell matrix that sees the Q1-P0
+#: pair's near-singular pressure modes, which S_p does not), relaxed by SOR. Hertz, nd 3
+#: (1 rank, Krylov iterations in all, S_p -> selfp + SOR): nu = 0.4999 528 -> 307,
+#: 0.4999999 DIVERGED_LINEAR_SOLVE -> converged (1138); nd 4: 0.4999 792 -> 451, 0.499999
+#: DIVERGED_LINEAR_SOLVE -> converged (1605); the bbar beam, Nd 8, 10 % more (233 -> 260
+#: at 0.4999); with GAMG instead of SOR 336 at 0.4999 in twice the time. Not for q2p1
+#: (inf-sup stable, S_p equivalent to S: Hertz, nd 2, 0.4999: 120 -> 291)
+BBAR_DEFAULTS = {"pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_p_pc_type": "sor"}
 
 
 def _diagonal(comm, values):
@@ -188,7 +204,8 @@ class Split:
         mg = self.mg if not opts.hasName(prefix + "fieldsplit_u_pc_type") else None
         # with a hierarchy the u-block becomes PCMG after the split's set-up (which
         # creates its KSP): until then a PC that costs nothing to set up
-        defaults = dict(DEFAULTS, **({"fieldsplit_u_pc_type": "none"} if mg else {}))
+        defaults = dict(DEFAULTS, **({"fieldsplit_u_pc_type": "none"} if mg else {}),
+                        **(BBAR_DEFAULTS if self.element == "bbar" else {}))
         with options.inserted({prefix + k: v for k, v in {**defaults, **kw}.items()}):
             ksp.setFromOptions()
             if not opts.hasName(prefix + "pc_fieldsplit_schur_precondition"):
@@ -226,11 +243,18 @@ def split_for(disc, mode="auto", pc_given=False, mg=None):
     """The Split of a discretisation, or None. mode (-newton_pressure_split): auto, a Split
     for bbar or q2p1 with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
     Newton steps' preconditioner (pc_given: -newton_pc_type, e.g. lu, is one for K: a
-    nest cannot be factored); off: None."""
+    nest cannot be factored); off: None. ValueError for bbar past BBAR_REFUSE_LAMBDA_MU
+    without pc_given."""
     if mode not in ("auto", "off"):
         raise ValueError(f"-newton_pressure_split must be auto or off, got {mode!r}")
     mat = disc.scene["material"]
     lam, mu = fem.lame(mat["young"], mat["poisson"])
+    if disc.element == "bbar" and lam > BBAR_REFUSE_LAMBDA_MU * mu and not pc_given:
+        raise ValueError(f"-element bbar at nu = {mat['poisson']:.10g} (lambda / mu = "
+                         f"{lam / mu:.1e} > {BBAR_REFUSE_LAMBDA_MU:.0e}): its Q1-P0 pressure is "
+                         f"not inf-sup stable and the iterative solves fail as the mesh "
+                         f"refines; use -element q2p1 (or auto), or a direct solve "
+                         f"(-newton_ksp_type preonly -newton_pc_type lu)")
     if mode == "off" or pc_given or disc.element not in fem.PRESSURES or \
             lam <= LAMBDA_SPLIT * mu:
         return None

@@ -171,13 +171,26 @@ def test_no_contact_solve_closed_form():
     assert its["auto"] < its["off"], its
 
 
-@pytest.mark.parametrize("nu,element,named", [(0.4999999, "bbar", True),
+@pytest.mark.parametrize("nu,element,named", [(0.499999, "bbar", True),
                                                (0.49999, "bbar", False),
                                                (0.4999999, "q2p1", False)])
 def test_failed_solve_of_a_rubber_bbar_names_q2p1(nu, element, named):
     """A failed linear solve's hint names q2p1 for a bbar body past lambda / mu = 1e5
-    (Hertz at nu = 0.4999999, nd 3: KSP breakdown; runs/results/stability-hertznu.md), and
+    (Hertz at nu = 0.499999, nd 4, with the diagonal S_p: KSP DIVERGED_MAX_IT), and
     nothing for bbar below it or for q2p1 itself."""
     split = _problem(nu, element).solvers.pressure_split()
     hint = split.failure_hint()
-    assert ("-element q2p1" in hint) == named and ("lambda / mu = 5.0e+06" in hint) == named
+    assert ("-element q2p1" in hint) == named and ("lambda / mu = 5.0e+05" in hint) == named
+
+
+def test_bbar_past_its_limit_is_refused_before_a_solve():
+    """bbar at nu = 0.4999999 (lambda / mu = 5e6 > mixed.BBAR_REFUSE_LAMBDA_MU): refused
+    when the split is built (one line naming q2p1 and the direct solve), not after a failed
+    Newton iteration; with the preconditioner chosen on the command line (pc_given: a
+    direct solve) it is not refused (no split: K itself); 0.499999 (5e5) builds its split."""
+    pr = _problem(0.4999999)
+    with pytest.raises(ValueError, match=r"bbar at nu = 0\.4999999 \(lambda / mu = 5\.0e\+06 "
+                                         r"> 1e\+06\).*-element q2p1.*-newton_pc_type lu"):
+        pr.solvers.pressure_split()
+    assert pr.solvers.pressure_split(pc_given=True) is None
+    assert _problem(0.499999).solvers.pressure_split() is not None
