@@ -84,13 +84,15 @@ DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upp
             "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"}
 #: bbar's pressure-block preconditioner instead of the diagonal S_p (command line wins):
 #: PETSc's selfp, -Cq - R Gq diag(A_g)^-1 Gq^T (a cell-to-cell matrix that sees the Q1-P0
-#: pair's near-singular pressure modes, which S_p does not), relaxed by SOR. Hertz, nd 3
-#: (1 rank, Krylov iterations in all, S_p -> selfp + SOR): nu = 0.4999 528 -> 307,
-#: 0.4999999 DIVERGED_LINEAR_SOLVE -> converged (1138); nd 4: 0.4999 792 -> 451, 0.499999
-#: DIVERGED_LINEAR_SOLVE -> converged (1605); the bbar beam, Nd 8, 10 % more (233 -> 260
-#: at 0.4999); with GAMG instead of SOR 336 at 0.4999 in twice the time. Not for q2p1
-#: (inf-sup stable, S_p equivalent to S: Hertz, nd 2, 0.4999: 120 -> 291)
-BBAR_DEFAULTS = {"pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_p_pc_type": "sor"}
+#: pair's near-singular pressure modes, which S_p does not), by block Jacobi + ILU(0).
+#: Hertz, 1 rank, Krylov iterations in all, S_p -> selfp: nd 3, nu = 0.4999 528 -> 406,
+#: 0.499999 1247 -> 1068, 0.4999999 DIVERGED_LINEAR_SOLVE -> converged (1615); nd 4,
+#: 0.4999 792 -> 565, 0.499999 DIVERGED_LINEAR_SOLVE -> converged (1887). SOR instead of
+#: ILU took fewer (307, 947; 451, 1605) but on PETSc 3.26 GMRES's residual then drifted
+#: from the true one (7x at rtol 1e-10: tests/solvers/test_mixed.py); GAMG 336 at 0.4999
+#: in twice the time. Not for q2p1 (inf-sup stable, S_p equivalent to S: Hertz, nd 2,
+#: 0.4999: 120 -> 291)
+BBAR_DEFAULTS = {"pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_p_pc_type": "bjacobi"}
 
 
 def _diagonal(comm, values):
