@@ -45,7 +45,7 @@ def check_bodies(disc):
     if together:
         raise SceneError(f"the bodies together are held by nothing in {', '.join(together)} "
                          f"(their dirichlet and symmetry parts): no equilibrium; support one")
-    pair = disc.pair_bodies or ()
+    pair = {b for _, *both in disc.pair_bodies or () for b in both}
     needs_pair = False
     for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
         m = mask.getArray(readonly=True)

@@ -58,7 +58,8 @@ class ContactSet:
         #: contact/fem/frame.py, which the discretisation builds from `nodes`
         self.off_axes = axis is None
         #: the contact space's normal component is sign times dof `axis` (a contact pair
-        #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1)
+        #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1; an
+        #: array per contact node where there are several pairs)
         self.sign = 1.0
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
         comps = [c for c in range(3) if c != self.axis] + [self.axis]
