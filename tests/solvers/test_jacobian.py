@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 import pytest
-from conftest import ROOT, paper_scene, two_blocks
+from conftest import ROOT, paper_scene, three_blocks, two_blocks
 from petsc4py import PETSc
 
 from contact import scene as scenes
@@ -67,6 +67,12 @@ def _two_bodies():
     return scenes.validate(sc)
 
 
+def _three_bodies():
+    """Three blocks stacked (two pairs: Z = I + both pairs' E), the top pushed down and
+    sideways, F = 0.3."""
+    return scenes.validate(three_blocks(friction=0.3, push=(0.002, 0.002, -0.004)))
+
+
 CASES = {
     "beam_F0.3": lambda: _beam(),
     "beam_F_varying": lambda: _beam("0.1 + 0.4 * x / 3"),
@@ -77,6 +83,7 @@ CASES = {
     "block_gap": _gap_block,
     "incline": _incline,
     "two_bodies": _two_bodies,
+    "three_bodies": _three_bodies,
 }
 
 
@@ -144,7 +151,7 @@ def test_newton_step_is_the_linearisation(case, storage):
     e, counts = _errors(case, storage=storage)
     assert counts["slip"] > 0 and counts["stick"] > 0, counts
     assert counts["stick"] + counts["slip"] == counts["active"], counts
-    if case not in ("incline", "two_bodies"):     # (every node in contact there)
+    if case not in ("incline", "two_bodies", "three_bodies"):   # (every node in contact)
         assert counts["inactive"] > 0, counts
     floor = 1e-13
     # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor
