@@ -49,6 +49,39 @@ def element_of(scene):
     return el
 
 
+def _contact_pairs(disc, pairs):
+    """The contact pairs [(name, part)] of the Discretisation disc as one change of basis
+    (fem/pairs.py): each part's faces the slave side, the faces of its master.body on
+    master.plane the master side."""
+    names, surfaces = list(disc.bodies), []
+    for name, part in pairs:
+        m = part["master"]
+        axis, value = AXES[part["plane"][0]], float(part["plane"][1])
+        box = disc.bodies[part["body"]]        # the slave face's outward normal: -+e_axis
+        sign = -1 if abs(value - box["lower"][axis]) <= 1e-9 else \
+            1 if abs(value - box["upper"][axis]) <= 1e-9 else 0
+        if not sign:
+            raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = "
+                             f"{value:g} is no side of body {part['body']!r}")
+        master = mesh_bodies.body_faces(disc.conn, disc.level.reference, disc.body_of,
+                                        names.index(m["body"]), AXES[m["plane"][0]],
+                                        float(m["plane"][1]))
+        if disc.comm.tompi4py().allreduce(master.shape[0]) == 0:
+            raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face "
+                             f"on the plane {m['plane'][0]} = {m['plane'][1]}")
+        surfaces.append(Surface(name, disc.parts[name], master, axis, sign))
+    try:
+        pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped)
+    except PairError as e:
+        raise SceneError(str(e)) from None
+    for (name, part), p in zip(pairs, pair.pairs):
+        if p["n_slave"] == 0:
+            raise SceneError(f"contact pair {name!r}: the master faces of "
+                             f"{part['master']['body']!r} never face the slave faces of "
+                             f"{part['body']!r}")
+    return pair
+
+
 class Discretisation:
     """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`, on the
     hierarchy's level `level`. blocked: A in BAIJ (its solver's multigrid rediscretises its
@@ -197,38 +230,6 @@ class Discretisation:
             out.append(g)
         return out
 
-    def _pair(self, pairs):
-        """The contact pairs [(name, part)] as one change of basis (fem/pairs.py): each
-        part's faces the slave side, the faces of its master.body on master.plane the
-        master side."""
-        names, surfaces = list(self.bodies), []
-        for name, part in pairs:
-            m = part["master"]
-            axis, value = AXES[part["plane"][0]], float(part["plane"][1])
-            box = self.bodies[part["body"]]        # the slave face's outward normal: -+e_axis
-            sign = -1 if abs(value - box["lower"][axis]) <= 1e-9 else \
-                1 if abs(value - box["upper"][axis]) <= 1e-9 else 0
-            if not sign:
-                raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = "
-                                 f"{value:g} is no side of body {part['body']!r}")
-            master = mesh_bodies.body_faces(self.conn, self.level.reference, self.body_of,
-                                            names.index(m["body"]), AXES[m["plane"][0]],
-                                            float(m["plane"][1]))
-            if self.comm.tompi4py().allreduce(master.shape[0]) == 0:
-                raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face "
-                                 f"on the plane {m['plane'][0]} = {m['plane'][1]}")
-            surfaces.append(Surface(name, self.parts[name], master, axis, sign))
-        try:
-            pair = ContactPair(self.dm, self.coords, surfaces, self.clamped)
-        except PairError as e:
-            raise SceneError(str(e)) from None
-        for (name, part), p in zip(pairs, pair.pairs):
-            if p["n_slave"] == 0:
-                raise SceneError(f"contact pair {name!r}: the master faces of "
-                                 f"{part['master']['body']!r} never face the slave faces of "
-                                 f"{part['body']!r}")
-        return pair
-
     def _contact_diagonal(self):
         """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
         from (coulomb.py), or None for A's own. With bbar and lambda > RHO_LAMBDA_CAP mu
@@ -286,7 +287,7 @@ class Discretisation:
         gap, covered = con.get("gap"), None
         pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
         if pairs:
-            self.pair = self._pair(pairs)
+            self.pair = _contact_pairs(self, pairs)
             self.pair_bodies = [(n, p["body"], p["master"]["body"]) for n, p in pairs]
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,

@@ -209,3 +209,29 @@ def test_shipped_stack_three_blocks(comm):
     for cr in (up, low):
         assert 0.0 < cr["tangential"] <= 0.3 * cr["normal"] * (1 + 1e-9)
     assert low["area"]["stick"] > 0.0 and low["area"]["slip"] > 0.0
+
+
+def test_multigrid_and_coarse_start_on_three_blocks(comm):
+    """Refined levels (nd 4 from nd 1, both pairs on each): the multigrid's finest
+    interpolation in the pairs' basis (Z^-1 P) and the coarse-to-fine start give the patch
+    test's exact answer on the fine level; the rediscretised first coarse operator is the
+    Galerkin product (conftest.coarse_operator_errors) on the sheared stack."""
+    from conftest import coarse_operator_errors
+    from contact import fem, options
+    sc = three_blocks(young=(3.0, 1.0, 2.0), cells=(3, 2, 3))
+    sc["mesh"] = {"nd": 4}
+    with options.inserted({"mesh_refine": "2", "c2f_levels": "2"}):
+        pr = solve(scenes.validate(copy.deepcopy(sc)), comm)
+    assert pr.solvers.multigrid is not None and [r["nd"] for r in pr.coarse_runs] == [1, 2]
+    xyz, u = gather(pr)[:2]
+    off = np.all(np.abs(xyz[:, 2:3] - [0.5, 1.0]) > 1e-12, axis=1)
+    assert rel_err(u[off], exact(xyz, (3.0, 1.0, 2.0), 0.3)[off]) < 1e-8
+    assert pr.iterations()["inner_total"] <= 2               # started from the answer
+    sheared = three_blocks(friction=0.3, cells=(3, 3, 2), push=(0.002, 0.002, -0.004),
+                           young=(3.0, 1.0, 2.0))
+    sheared["mesh"] = {"nd": 2}
+    with options.inserted({"mesh_refine": "1", "c2f_levels": "0"}):
+        pr = solve(scenes.validate(sheared), comm)
+    assert pr.converged and pr.solvers.multigrid.rediscretised and fem.is_blocked(pr.A)
+    jacobian, stiffness = coarse_operator_errors(pr)
+    assert jacobian < 1e-12 and stiffness < 1e-12
