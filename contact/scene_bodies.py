@@ -19,8 +19,9 @@ the faces of `master.body` on `master.plane` (default: the slave's plane); the t
 coupled by the dual mortar (fem/pairs.py). A scene may have several pairs (a stack of
 blocks: each interface a contact part with its master), which share no slave node and
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
-without `master:` presses its body on the rigid foundation as in a one-body scene (not
-yet beside a pair). This version: q1, slave faces a side of their box (normal to x, y or
+without `master:` presses its body on the rigid foundation as in a one-body scene (beside
+pairs: the foundation's normal +e_k along the pairs' axis, none of its nodes a pair's
+slave node). This version: q1, slave faces a side of their box (normal to x, y or
 z), one normal direction for all pairs.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
@@ -154,6 +155,3 @@ def check_parts(scene):
             raise SceneError(f"boundary parts {pairs[faces]!r} and {name!r} pair the same "
                              f"two faces: one contact part per pair")
         pairs[faces] = name
-    if pairs and any(p.get("type") == "contact" and "master" not in p
-                     for p in scene["boundary"].values()):
-        raise SceneError("a contact pair and a rigid foundation in one scene: not yet")

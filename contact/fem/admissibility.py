@@ -42,11 +42,19 @@ def check_bodies(disc):
     rstart = disc.coordinates.getOwnershipRange()[0]
     rows = np.asarray(disc.clamped_xyz, dtype=np.int64)
     together = fem.free_rigid_modes(disc.coordinates, rows)[0]   # all bodies as one
+    on_foundation = together and disc.foundation_points is not None
+    if on_foundation:                             # beside pairs (discretisation.py)
+        together, Q, _ = fem.free_rigid_modes(disc.coordinates, rows, disc.foundation_points,
+                                              disc.normal)
+        if together and fem.tangential_modes(Q, disc.normal) and disc.cs.has_friction:
+            together = []                         # (friction may hold them: F > 0)
     if together:
         raise SceneError(f"the bodies together are held by nothing in {', '.join(together)} "
-                         f"(their dirichlet and symmetry parts): no equilibrium; support one")
-    pair = {b for _, *both in disc.pair_bodies or () for b in both}
-    needs_pair = False
+                         f"(their dirichlet and symmetry parts"
+                         + (", the foundation the normal direction" if on_foundation else "")
+                         + "): no equilibrium; support one")
+    pair = {b for _, *both in disc.pair_bodies or () for b in both} | disc.foundation_bodies
+    needs_pair = bool(on_foundation)
     for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
         m = mask.getArray(readonly=True)
         mine = rows[m[rows - rstart] > 0.5] if rows.size else rows

@@ -82,6 +82,45 @@ def _contact_pairs(disc, pairs):
     return pair
 
 
+def _foundation_beside_pairs(disc, names, gap, covered):
+    """The owned vertices of the rigid foundation's contact parts `names` join a scene's
+    contact pairs' contact set (gap, covered: per owned vertex, the pairs', changed in
+    place): the gap to the foundation's plane, whose normal must be the pairs' axis +e_k
+    (their contact space's normal), none of them a pair's slave node; SceneError naming
+    the parts otherwise. Returns the bodies the foundation holds (their names); sets
+    disc.foundation_points (the owned vertices', for the rigid-motion checks)."""
+    axis, comm = disc.pair.axis, disc.comm.tompi4py()
+    n = np.asarray(foundation_normal(disc.scene), dtype=float)
+    if not np.array_equal(n, np.eye(3)[axis]):
+        raise SceneError(f"contact part {names[0]!r}: beside contact pairs along "
+                         f"{'xyz'[axis]} the foundation's normal must be +{'xyz'[axis]}, "
+                         f"got {[float(c) for c in n]}")
+    loc = np.zeros((disc.coords.shape[0], 3))
+    for name in names:
+        loc[np.unique(disc.parts[name].ravel()), 0] = 1.0
+    g = fem.local_to_global(disc.dm, loc.ravel())
+    on = g.getArray(readonly=True)[::3] > 0.0
+    ids = g.getOwnershipRange()[0] // 3 + np.flatnonzero(on)
+    g.destroy()
+    shared = comm.allreduce(np.array([np.isin(ids, p["slave_face"]).sum()
+                                      for p in disc.pair.pairs])) > 0     # (summed)
+    if shared.any():
+        raise SceneError(f"contact part {names[0]!r} (the rigid foundation) and contact pair "
+                         f"{disc.pair.pairs[int(np.argmax(shared))]['name']!r} share slave "
+                         f"nodes: a node may be in one contact part only")
+    xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3)
+    point = np.asarray(disc.scene.get("contact", {}).get("foundation", {})
+                       .get("point", [0.0, 0.0, 0.0]), dtype=float)
+    gap[on] = (xyz[on] - point) @ n
+    covered[on] = True
+    disc.foundation_points = xyz[on].copy()
+    vb = np.full(disc.coords.shape[0], -1, dtype=np.intp)
+    vb[disc.conn] = disc.body_of[:, None]
+    held = np.unique(np.concatenate([vb[disc.parts[nm].ravel()] for nm in names]))
+    bodies = list(disc.bodies)
+    return {bodies[i] for part in comm.allgather(held) for i in part if i >= 0}
+
+
 class Discretisation:
     """A, b, load groups, u_D, clamped rows and the contact set of `scene` on `comm`, on the
     hierarchy's level `level`. blocked: A in BAIJ (its solver's multigrid rediscretises its
@@ -278,6 +317,8 @@ class Discretisation:
         self.cs = self.frame = None              # frame: contact/fem/frame.py (tilted foundation)
         self.pair = None                         # the contact pairs' basis (pairs.py)
         self.pair_bodies = None                  # [(part, slave body, master body)] per pair
+        self.foundation_bodies = set()           # beside pairs: the bodies on the foundation
+        self.foundation_points = None            # and its owned vertices' places
         if not self.has_contact_part:
             return
         con = sc.get("contact", {})
@@ -290,6 +331,9 @@ class Discretisation:
             self.pair = _contact_pairs(self, pairs)
             self.pair_bodies = [(n, p["body"], p["master"]["body"]) for n, p in pairs]
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
+            found = [n for n, p in bnd.items() if p["type"] == "contact" and "master" not in p]
+            if found:                            # the rigid foundation beside the pairs
+                self.foundation_bodies = _foundation_beside_pairs(self, found, gap, covered)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template,
                              normal=self.normal if self.pair is None else np.abs(self.pair.normal),

@@ -136,9 +136,10 @@ class ContactPair:
         #: the normal n into the slave bodies (the foundation's normal of a one-body scene;
         #: several pairs: the first's, each pair's own in `pairs`, all along e_axis)
         self.normal, self.axis = parts[0]["normal"], surfaces[0].axis
-        #: per pair: name, normal, its covered slave nodes (global vertex numbers)
+        #: per pair: name, normal, its covered slave nodes and all its slave face's nodes
+        #: (global vertex numbers)
         self.pairs = [{"name": p["name"], "normal": p["normal"], "slave_ids": p["rows"],
-                       "n_slave": int(p["rows"].size)} for p in parts]
+                       "n_slave": int(p["rows"].size), "slave_face": p["sid"]} for p in parts]
         cat = lambda k: np.concatenate([p[k] for p in parts])           # noqa: E731
         #: per slave face node (global vertex number): whether the master covers it, and
         #: its gap n . (X_j - sum_l P_jl X_l)

@@ -64,6 +64,29 @@ def test_patch_three_blocks(comm, friction, young):
         assert abs(cr["area"]["contact"] - 1.0) < 1e-12
 
 
+@pytest.mark.parametrize("friction", [0.0, "where(z > 0.25, 0.3, 0.0)"])
+def test_patch_on_the_rigid_foundation(comm, friction):
+    """The stack's base on the rigid foundation z = 0 (a contact part without a master
+    beside the two pairs) instead of held in z: the same exact answer, the multiplier p at
+    the base's 6 x 6 bottom nodes too, the three contact forces p each (F = 0.3 at the
+    pairs only: the rigid foundation would hold the base's bottom from its lateral
+    strain)."""
+    sc = three_blocks(friction, young=(3.0, 1.0, 2.0) if friction == 0.0 else (1.0,) * 3)
+    sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
+    young = tuple(b["material"]["young"] for b in sc["bodies"].values())
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged and pr.disc.foundation_bodies == {"base"}
+    xyz, u = gather(pr)[:2]
+    off = np.all(np.abs(xyz[:, 2:3] - [0.5, 1.0]) > 1e-12, axis=1)
+    assert rel_err(u[off], exact(xyz, young, 0.3)[off]) < 1e-8
+    lam = pr.cs.local_array(pr.l)
+    assert pr.comm.tompi4py().allreduce(lam.size) == 25 + 64 + 36
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
+    assert abs(pr.normal_force() - 3 * P) < 1e-8 * P
+    crs = stress.pair_results(pr)
+    assert all(abs(crs[n]["normal"] - P) < 1e-8 * P for n in ("upper", "lower"))
+
+
 def test_patch_fails_without_one_pairs_coupling(comm, monkeypatch):
     """The test sees each pair: the lower pair's master motion left out (its E = 0: the
     middle block on a rigid plane) puts u off by the base's compression."""
@@ -173,6 +196,23 @@ def test_refused_other_axes(comm):
     with pytest.raises(SceneError, match=r"^contact pairs 'wall_side' and 'c_on_base' have "
                        r"normals along different axes \(x, z\): several pairs share one "
                        r"normal axis \(for now\)$"):
+        solve(scenes.validate(sc), comm)
+
+
+def test_refused_foundation_beside_pairs(comm):
+    """The rigid foundation beside pairs: its normal along the pairs' axis, +e_k, and none
+    of its nodes a pair's slave node; one line naming the part."""
+    sc = three_blocks()
+    sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
+    sc["contact"]["foundation"] = {"normal": [0.0, 0.0, -1.0]}
+    with pytest.raises(SceneError, match=r"^contact part 'bottom': beside contact pairs "
+                       r"along z the foundation's normal must be \+z, got \[-?0.0, -?0.0, "
+                       r"-1.0\]$"):
+        solve(scenes.validate(sc), comm)
+    sc = three_blocks()
+    sc["boundary"]["also"] = {"type": "contact", "body": "middle", "plane": ["z", 0.5]}
+    with pytest.raises(SceneError, match=r"^contact part 'also' \(the rigid foundation\) and "
+                       r"contact pair 'lower' share slave nodes"):
         solve(scenes.validate(sc), comm)
 
 
