@@ -22,7 +22,8 @@ whose slave nodes are no other pair's master nodes (checked on the mesh). A cont
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +e_k along the pairs' axis, none of its nodes a pair's
 slave node). This version: q1, slave faces a side of their box (normal to x, y or
-z), one normal direction for all pairs.
+z), all pairs' normals along one axis. A contact part may have its own `friction:` (a
+number or an expression, as contact.friction) on its nodes.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
@@ -121,6 +122,25 @@ def _lower_surface(b, lo, hi, where):
                          f"{np.nanmax(v):g}]")
 
 
+def _part_friction(name, part):
+    """A contact part's own friction: a number >= 0 or an expression in x, y, z (checked
+    here; its values on the nodes: fem/pairs_scene.py)."""
+    SceneError, fr = _scene.SceneError, part["friction"]
+    where = f"boundary part {name!r}: friction"
+    if part.get("type") != "contact":
+        raise SceneError(f"{where} belongs to a contact part")
+    if isinstance(fr, bool) or not isinstance(fr, (int, float, str)):
+        raise SceneError(f"{where} must be a number or an expression in x, y, z, got "
+                         f"{_scene._shown(fr)}")
+    if isinstance(fr, str):
+        try:
+            expression.parse(fr)
+        except expression.ExpressionError as e:
+            raise SceneError(f"{where}: {str(e).splitlines()[0]}") from None
+    elif not np.isfinite(fr) or fr < 0:
+        raise SceneError(f"{where} must be a finite number >= 0, got {fr!r}")
+
+
 def check_parts(scene):
     """The parts' `body` and `master` keys: known bodies, a master on a contact part only,
     two pairs never on the same two faces; SceneError naming the part. (Which nodes the
@@ -128,6 +148,8 @@ def check_parts(scene):
     SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
     bodies, pairs = scene["bodies"], {}
     for name, part in scene["boundary"].items():
+        if isinstance(part, dict) and "friction" in part:
+            _part_friction(name, part)
         if not isinstance(part, dict) or not ("body" in part or "master" in part):
             continue
         if "body" in part and (not isinstance(part["body"], str) or part["body"] not in bodies):

@@ -24,13 +24,16 @@ def _pairs(problem):
     d = problem.disc
     if d.pair is None:
         return None, None
-    forces = stress.pair_results(problem)
+    forces, bnd = stress.pair_results(problem), problem.scene["boundary"]
+    fr = problem.scene.get("contact", {}).get("friction", 0.0)
     each = {name: {"slave": slave, "master": master, "slave_nodes": p["n_slave"],
-                   "normal": [float(c) for c in p["normal"]], "contact_result": forces[name]}
+                   "normal": [float(c) for c in p["normal"]],
+                   "friction": bnd[name].get("friction", fr), "contact_result": forces[name]}
             for (name, slave, master), p in zip(d.pair_bodies, d.pair.pairs)}
     one = None
     if len(each) == 1:
-        one = {k: v for k, v in next(iter(each.values())).items() if k != "contact_result"}
+        one = {k: v for k, v in next(iter(each.values())).items()
+               if k not in ("contact_result", "friction")}
     return one, each
 
 

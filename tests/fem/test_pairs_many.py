@@ -58,21 +58,25 @@ def test_patch_three_blocks(comm, friction, young):
                                        ("lower", "middle", "base", 64)):
         cp = s["contact_pairs"][name]
         assert (cp["slave"], cp["master"], cp["slave_nodes"]) == (slave, master, nodes)
-        assert cp["normal"] == [0, 0, 1]
+        assert cp["normal"] == [0, 0, 1] and cp["friction"] == friction
         cr = cp["contact_result"]
         assert abs(cr["normal"] - P) < 1e-8 * P and abs(cr["force"][2] - P) < 1e-8 * P
         assert abs(cr["area"]["contact"] - 1.0) < 1e-12
 
 
-@pytest.mark.parametrize("friction", [0.0, "where(z > 0.25, 0.3, 0.0)"])
+@pytest.mark.parametrize("friction", [0.0, "where(z > 0.25, 0.3, 0.0)", "part"])
 def test_patch_on_the_rigid_foundation(comm, friction):
     """The stack's base on the rigid foundation z = 0 (a contact part without a master
     beside the two pairs) instead of held in z: the same exact answer, the multiplier p at
     the base's 6 x 6 bottom nodes too, the three contact forces p each (F = 0.3 at the
-    pairs only: the rigid foundation would hold the base's bottom from its lateral
-    strain)."""
+    pairs only, by an expression or by the foundation part's own friction 0: the rigid
+    foundation would hold the base's bottom from its lateral strain)."""
+    part = friction == "part"
+    friction = 0.3 if part else friction
     sc = three_blocks(friction, young=(3.0, 1.0, 2.0) if friction == 0.0 else (1.0,) * 3)
     sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
+    if part:
+        sc["boundary"]["bottom"]["friction"] = 0
     young = tuple(b["material"]["young"] for b in sc["bodies"].values())
     pr = solve(scenes.validate(sc), comm)
     assert pr.converged and pr.disc.foundation_bodies == {"base"}
@@ -85,6 +89,10 @@ def test_patch_on_the_rigid_foundation(comm, friction):
     assert abs(pr.normal_force() - 3 * P) < 1e-8 * P
     crs = stress.pair_results(pr)
     assert all(abs(crs[n]["normal"] - P) < 1e-8 * P for n in ("upper", "lower"))
+    if friction != 0.0:                                        # F per node as meant
+        F = pr.cs.local_array(pr.cs.F)
+        bottom = pr.cs.coordinates[:, 2] < 0.25
+        assert np.all(F[bottom] == 0.0) and np.all(F[~bottom] == 0.3)
 
 
 def test_patch_fails_without_one_pairs_coupling(comm, monkeypatch):
@@ -216,12 +224,25 @@ def test_refused_foundation_beside_pairs(comm):
         solve(scenes.validate(sc), comm)
 
 
-def test_refused_twice_the_same_faces():
-    """Scene checks: two contact parts pairing the same two faces, in one line."""
+@pytest.mark.parametrize("change, words", [
+    (lambda b: b.update(again=copy.deepcopy(b["upper"])),
+     r"^boundary parts 'upper' and 'again' pair the same two faces: one contact part per "
+     r"pair$"),
+    (lambda b: b["press"].update(friction=0.3),
+     r"^boundary part 'press': friction belongs to a contact part$"),
+    (lambda b: b["upper"].update(friction=-0.1),
+     r"^boundary part 'upper': friction must be a finite number >= 0, got -0.1$"),
+    (lambda b: b["upper"].update(friction="x.real"),
+     r"^boundary part 'upper': friction: .*attribute"),
+    (lambda b: b["upper"].update(friction=[0.3]),
+     r"^boundary part 'upper': friction must be a number or an expression in x, y, z, got"),
+])
+def test_refused_scene_checks(change, words):
+    """Scene checks, in one line: two contact parts pairing the same two faces, a part's
+    friction off a contact part or not a friction."""
     sc = three_blocks()
-    sc["boundary"]["again"] = copy.deepcopy(sc["boundary"]["upper"])
-    with pytest.raises(SceneError, match=r"^boundary parts 'upper' and 'again' pair the "
-                       r"same two faces: one contact part per pair$"):
+    change(sc["boundary"])
+    with pytest.raises(SceneError, match=words):
         scenes.validate(sc)
 
 
