@@ -177,12 +177,13 @@ def peak(comm, values, where):
 
 
 def contact_basis(cs):
-    """(3, 3): row c = the direction in x, y, z of the contact-space component c (t1, t2,
-    n), read from the contact set's dofs (the frame's basis off the axes); n's sign is
-    cs.sign's (a contact pair's, per node: contact_state)."""
-    B = basis(cs.normal) if cs.off_axes else np.eye(3)
-    comps = [int(d[0] % 3) for d in cs.dofs] if cs.local_size else [0, 1, 2]
-    return B[comps]
+    """(m, 3, 3): per owned contact node, row c = the direction in x, y, z of its
+    contact-space component c (t1, t2, n), read from the contact set's components (the
+    frame's basis off the axes); n's sign is cs.sign's (a contact pair's, per node:
+    contact_state)."""
+    if cs.off_axes:
+        return np.broadcast_to(basis(cs.normal), (cs.local_size, 3, 3))
+    return np.eye(3)[cs.components]
 
 
 def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
@@ -212,7 +213,7 @@ def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
     use = np.zeros_like(friction)
     ok = (status > 0) & (bound > 0.0)
     use[ok] = friction[ok] / bound[ok]
-    traction = np.column_stack([sig_t, g * cs.sign]) @ D
+    traction = np.einsum("mc,mcd->md", np.column_stack([sig_t, g * cs.sign]), D)
     return {"coordinates": cs.coordinates, "pressure": pressure, "slip": slip_norm,
             "status": status.astype(np.int32), "traction": traction, "normal_traction": g,
             "friction": friction, "friction_use": use,

@@ -253,20 +253,22 @@ class Discretisation:
         fd = con.get("foundation", {})
         template = dm.createGlobalVec()
         rstart = template.getOwnershipRange()[0]
-        gap, covered = con.get("gap"), None
+        gap, covered, axes = con.get("gap"), None, None
         pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
         if pairs:
             self.pair = contact_pairs(self, pairs)
             self.pair_bodies = [(n, p["body"], p["master"]["body"]) for n, p in pairs]
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
+            axes = self.pair.vertex_axes(template.getLocalSize() // 3, rstart // 3)
             found = [n for n, p in bnd.items() if p["type"] == "contact" and "master" not in p]
             if found:                            # the rigid foundation beside the pairs
-                self.foundation_bodies = foundation_beside_pairs(self, found, gap, covered)
+                self.foundation_bodies = foundation_beside_pairs(self, found, gap, covered,
+                                                                 axes)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template,
                              normal=self.normal if self.pair is None else np.abs(self.pair.normal),
                              point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
-                             roles=self.roles, covered=covered)
+                             roles=self.roles, covered=covered, axes=axes)
         if self.bodies is not None:              # a contact part's own friction
             part_friction(self)
         if self.pair is not None:                # n = -e_k: read as +e_k through Z (pairs.py)

@@ -29,8 +29,8 @@ Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pai
 nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
 the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
 node of another (E E = 0); `_check_nodes` refuses the scene otherwise (PairError, one
-line naming the two pairs). The pairs share one normal direction for now (the contact
-set's). Rows and columns of clamped dofs are left out of E: a clamped
+line naming the two pairs). Each pair has its own normal (+-e_k, any k): the contact set reads
+each node's normal dof (contactset.py: `axes`). Rows and columns of clamped dofs are left out of E: a clamped
 slave component stays u~ = u (0), a clamped master component contributes its 0.
 
 A~ is assembled as it stands (fem/assembly.py, `add_turned`): Z differs from D only at the
@@ -69,12 +69,6 @@ def _gathered(comm, gidx, coords, faces):
     X = np.concatenate([p[1].reshape(-1, 3) for p in parts])
     ids, first, inv = np.unique(g.ravel(), return_index=True, return_inverse=True)
     return X[first], inv.reshape(-1, 4), ids
-
-
-def _axis_name(n):
-    """'+z', '-x', ... of an axis-aligned unit vector."""
-    k = int(np.argmax(np.abs(n)))
-    return ("+" if n[k] > 0 else "-") + "xyz"[k]
 
 
 def _held(comm, clamped, nodes):
@@ -127,19 +121,14 @@ class ContactPair:
         gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
         parts = [self._surface(comm, gidx, coords, s) for s in surfaces]
         _check_nodes(parts)
-        for p, q in zip(surfaces[1:], parts[1:]):
-            if p.axis != surfaces[0].axis:
-                raise PairError(f"contact pairs {parts[0]['name']!r} and {q['name']!r} have "
-                                f"normals along different axes ({'xyz'[surfaces[0].axis]}, "
-                                f"{'xyz'[p.axis]}): several pairs share one normal axis "
-                                f"(for now)")
         #: the normal n into the slave bodies (the foundation's normal of a one-body scene;
-        #: several pairs: the first's, each pair's own in `pairs`, all along e_axis)
+        #: several pairs: the first's, each pair's own in `pairs`)
         self.normal, self.axis = parts[0]["normal"], surfaces[0].axis
         #: per pair: name, normal, its covered slave nodes and all its slave face's nodes
         #: (global vertex numbers)
         self.pairs = [{"name": p["name"], "normal": p["normal"], "slave_ids": p["rows"],
-                       "n_slave": int(p["rows"].size), "slave_face": p["sid"]} for p in parts]
+                       "n_slave": int(p["rows"].size), "slave_face": p["sid"],
+                       "axis": s.axis} for p, s in zip(parts, surfaces)]
         cat = lambda k: np.concatenate([p[k] for p in parts])           # noqa: E731
         #: per slave face node (global vertex number): whether the master covers it, and
         #: its gap n . (X_j - sum_l P_jl X_l)
@@ -362,6 +351,15 @@ class ContactPair:
         gap[loc[mine]] = self.gaps[mine]
         cov[loc[mine]] = self.covered[mine]
         return gap, cov
+
+    def vertex_axes(self, nv_owned, rstart_block):
+        """Per owned vertex, the axis k of its pair's normal (+-e_k) at the slave face
+        vertices, -1 elsewhere (the contact set's normal dofs: contactset.py)."""
+        out = np.full(nv_owned, -1, dtype=np.intp)
+        for p in self.pairs:
+            loc = p["slave_face"] - rstart_block
+            out[loc[(loc >= 0) & (loc < nv_owned)]] = p["axis"]
+        return out
 
     def from_displacement_rows(self, P):
         """Z^-1 P (a new Mat): an interpolation into x, y, z turned into this basis (the

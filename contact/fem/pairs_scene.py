@@ -58,19 +58,19 @@ def contact_pairs(disc, pairs):
     return pair
 
 
-def foundation_beside_pairs(disc, names, gap, covered):
+def foundation_beside_pairs(disc, names, gap, covered, axes):
     """The owned vertices of the rigid foundation's contact parts `names` join a scene's
-    contact pairs' contact set (gap, covered: per owned vertex, the pairs', changed in
-    place): the gap to the foundation's plane, whose normal must be the pairs' axis +e_k
-    (their contact space's normal), none of them a pair's slave node; SceneError naming
-    the parts otherwise. Returns the bodies the foundation holds (their names); sets
-    disc.foundation_points (the owned vertices', for the rigid-motion checks)."""
-    axis, comm = disc.pair.axis, disc.comm.tompi4py()
+    contact pairs' contact set (gap, covered, axes: per owned vertex, the pairs', changed
+    in place): the gap to the foundation's plane, whose normal must be an axis +e_k (the
+    contact set's normal dof k), none of them a pair's slave node; SceneError naming the
+    parts otherwise. Returns the bodies the foundation holds (their names); sets
+    disc.foundation_points and disc.foundation_normal (for the rigid-motion checks)."""
+    comm = disc.comm.tompi4py()
     n = np.asarray(foundation_normal(disc.scene), dtype=float)
+    axis = int(np.argmax(np.abs(n)))
     if not np.array_equal(n, np.eye(3)[axis]):
-        raise SceneError(f"contact part {names[0]!r}: beside contact pairs along "
-                         f"{'xyz'[axis]} the foundation's normal must be +{'xyz'[axis]}, "
-                         f"got {[float(c) for c in n]}")
+        raise SceneError(f"contact part {names[0]!r}: beside contact pairs the foundation's "
+                         f"normal must be +x, +y or +z, got {[float(c) for c in n]}")
     on, start = owned_on(disc, names)
     ids = start + np.flatnonzero(on)
     shared = comm.allreduce(np.array([np.isin(ids, p["slave_face"]).sum()
@@ -84,7 +84,8 @@ def foundation_beside_pairs(disc, names, gap, covered):
                        .get("point", [0.0, 0.0, 0.0]), dtype=float)
     gap[on] = (xyz[on] - point) @ n
     covered[on] = True
-    disc.foundation_points = xyz[on].copy()
+    axes[on] = axis
+    disc.foundation_points, disc.foundation_normal = xyz[on].copy(), n
     vb = np.full(disc.coords.shape[0], -1, dtype=np.intp)
     vb[disc.conn] = disc.body_of[:, None]
     held = np.unique(np.concatenate([vb[disc.parts[nm].ravel()] for nm in names]))

@@ -190,9 +190,72 @@ def test_refused_shared_nodes(comm):
         solve(scenes.validate(sc), comm)
 
 
-def test_refused_other_axes(comm):
-    """Pairs whose normals lie along different axes (a wall beside the base, its side the
-    slave; c on the base): one line naming them."""
+def _two_axes(slave_left):
+    """Two systems in one scene, a pair along z and one along x: the punch on the base
+    (as two_blocks) and, beside them, a block `right` [2.5,3] x [0,1]^2 pressed by p along
+    -x on a block `left` [2,2.5] x [0,1]^2 held in x on x = 2; symmetry planes y = 0 and
+    z = 0 through all, x = 0 through the first system. The side pair's slave is the left
+    block's face (n = -e_x, flipped) or the right's (n = +e_x)."""
+    mat = {"young": 1.0, "poisson": 0.3}
+    box = lambda lo, hi, n: {"lower": lo, "upper": hi, "cells": n,  # noqa: E731
+                             "material": dict(mat)}
+    side = {"type": "contact", "body": "left", "plane": ["x", 2.5], "master": {"body": "right"}} \
+        if slave_left else \
+        {"type": "contact", "body": "right", "plane": ["x", 2.5], "master": {"body": "left"}}
+    return {"name": "two_axes",
+            "bodies": {"base": box([0, 0, 0], [1, 1, 0.5], [5, 5, 3]),
+                       "punch": box([0, 0, 0.5], [1, 1, 1], [7, 7, 3]),
+                       "left": box([2, 0, 0], [2.5, 1, 1], [3, 5, 5]),
+                       "right": box([2.5, 0, 0], [3, 1, 1], [3, 4, 4])},
+            "boundary": {"down": {"type": "contact", "body": "punch", "plane": ["z", 0.5],
+                                  "master": {"body": "base"}},
+                         "side": side,
+                         "press": {"type": "traction", "body": "punch", "plane": ["z", 1.0],
+                                   "traction": [0.0, 0.0, -P]},
+                         "push": {"type": "traction", "body": "right", "plane": ["x", 3.0],
+                                  "traction": [-P, 0.0, 0.0]},
+                         "hold": {"type": "dirichlet", "body": "left", "plane": ["x", 2.0],
+                                  "components": ["x"]},
+                         "sym_x": {"type": "symmetry", "plane": ["x", 0.0]},
+                         "sym_y": {"type": "symmetry", "plane": ["y", 0.0]},
+                         "sym_z": {"type": "symmetry", "plane": ["z", 0.0]}},
+            "contact": {"friction": 0.0}, "solver": {"mode": "newton", "newton_rtol": 1e-12}}
+
+
+@pytest.mark.parametrize("slave_left", [True, False])
+def test_patch_pairs_along_two_axes(comm, slave_left):
+    """Pairs with normals along z and along x in one scene (each contact node reads its
+    own normal dof: contactset.py `axes`): uniaxial stress along z in the first system and
+    along x in the second, to 1e-8; the multiplier p at every slave node; each pair's force
+    along its own normal."""
+    pr = solve(scenes.validate(_two_axes(slave_left)), comm)
+    assert pr.converged
+    xyz, u = gather(pr)[:2]
+    ref = np.zeros_like(xyz)
+    first = xyz[:, 0] < 1.5
+    ref[first] = exact(np.column_stack([xyz[first, :2], xyz[first, 2]]), (1.0, 1.0, 1.0),
+                       0.3)
+    x, y, z = xyz[~first].T
+    ref[~first] = np.column_stack([-P * (x - 2.0), 0.3 * P * y, 0.3 * P * z])
+    assert rel_err(u, ref) < 1e-8
+    sig = stress.body_stress(pr)
+    cz = sig["centroid"][:, 0] < 1.5
+    assert np.abs(sig["cell"][cz] - [0, 0, -P, 0, 0, 0]).max(initial=0.0) < 1e-8 * P
+    assert np.abs(sig["cell"][~cz] - [-P, 0, 0, 0, 0, 0]).max(initial=0.0) < 1e-8 * P
+    lam = pr.cs.local_array(pr.l)
+    side = 36 if slave_left else 25                    # left's 6 x 6, right's 5 x 5 nodes
+    assert pr.comm.tompi4py().allreduce(lam.size) == 64 + side
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
+    crs = stress.pair_results(pr)
+    assert abs(crs["down"]["force"][2] - P) < 1e-8 * P
+    assert abs(crs["side"]["force"][0] - (-P if slave_left else P)) < 1e-8 * P
+    assert abs(crs["side"]["normal"] - P) < 1e-8 * P
+
+
+def test_refused_a_body_its_pairs_do_not_hold(comm):
+    """A wall beside the base, its side the slave of a pair along x (F = 0), c on the base:
+    the wall's rigid motions are checked against its own pair's normal (x) only, not the
+    other pair's nodes (z); one line."""
     sc = _halves()
     sc["bodies"]["wall"] = {"lower": [1, 0, 0], "upper": [1.5, 1, 0.5], "cells": [2, 3, 2],
                             "material": {"young": 1.0, "poisson": 0.3}}
@@ -201,20 +264,21 @@ def test_refused_other_axes(comm):
                       "master": {"body": "base"}}
     b["c_on_base"] = {"type": "contact", "body": "c", "plane": ["z", 0.5],
                       "master": {"body": "base"}}
-    with pytest.raises(SceneError, match=r"^contact pairs 'wall_side' and 'c_on_base' have "
-                       r"normals along different axes \(x, z\): several pairs share one "
-                       r"normal axis \(for now\)$"):
+    with pytest.raises(SceneError, match=r"^body 'wall': its dirichlet and symmetry parts and "
+                       r"the contact pair leave rigid-body motion free \(translation y, "
+                       r"translation z, rotation about x; the pair holds the normal "
+                       r"direction\): no unique solution$"):
         solve(scenes.validate(sc), comm)
 
 
 def test_refused_foundation_beside_pairs(comm):
-    """The rigid foundation beside pairs: its normal along the pairs' axis, +e_k, and none
-    of its nodes a pair's slave node; one line naming the part."""
+    """The rigid foundation beside pairs: its normal an axis +e_k, and none of its nodes a
+    pair's slave node; one line naming the part."""
     sc = three_blocks()
     sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
     sc["contact"]["foundation"] = {"normal": [0.0, 0.0, -1.0]}
-    with pytest.raises(SceneError, match=r"^contact part 'bottom': beside contact pairs "
-                       r"along z the foundation's normal must be \+z, got \[-?0.0, -?0.0, "
+    with pytest.raises(SceneError, match=r"^contact part 'bottom': beside contact pairs the "
+                       r"foundation's normal must be \+x, \+y or \+z, got \[-?0.0, -?0.0, "
                        r"-1.0\]$"):
         solve(scenes.validate(sc), comm)
     sc = three_blocks()
