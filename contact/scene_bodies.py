@@ -20,9 +20,10 @@ coupled by the dual mortar (fem/pairs.py). A scene may have several pairs (a sta
 blocks: each interface a contact part with its master), which share no slave node and
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
-pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This version: q1, slave faces a side of their box (normal to x, y or
-z; pairs may face different axes). A contact part may have its own `friction:` (a
-number or an expression, as contact.friction) on its nodes.
+pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
+version: q1, slave faces a side of their box (normal to x, y or z; pairs may face
+different axes). A contact part may have its own `friction:` (a number or an expression,
+as contact.friction) on its nodes.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading

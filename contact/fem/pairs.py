@@ -29,9 +29,11 @@ Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pai
 nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
 the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
 node of another (E E = 0); `_check_nodes` refuses the scene otherwise (PairError, one
-line naming the two pairs). Each pair has its own normal (+-e_k, any k): the contact set reads
-each node's normal dof (contactset.py: `axes`). Rows and columns of clamped dofs are left out of E: a clamped
-slave component stays u~ = u (0), a clamped master component contributes its 0.
+line naming the two pairs). Each pair has its own normal (+-e_k, any k): the contact set
+reads each node's normal dof (contactset.py: `axes`).
+
+Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
+(0), a clamped master component contributes its 0.
 
 A~ is assembled as it stands (fem/assembly.py, `add_turned`): Z differs from D only at the
 slave nodes, so only the cells that hold one change; each rank sums its such cells'
