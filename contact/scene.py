@@ -46,7 +46,7 @@ SCHEMA = {
                "c2f_levels", "check_tol"),
     "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
     "body part": ("plane", "type", "traction", "components", "displacement", "ramp", "body",
-                  "master"),
+                  "master", "friction"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 

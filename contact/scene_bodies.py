@@ -16,9 +16,14 @@ the meshes of two bodies are independent (mesh/bodies.py). A boundary part names
 (`body:`; without it a plane part takes the faces of every body on it: a symmetry plane).
 A contact part with `master:` is a pair: its faces are the slave side, the master's are
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
-coupled by the dual mortar (fem/pairs.py). A contact part without `master:` presses its
-body on the rigid foundation as in a one-body scene. This version: q1, one pair, its slave
-faces a side of their box (normal to x, y or z).
+coupled by the dual mortar (fem/pairs.py). A scene may have several pairs (a stack of
+blocks: each interface a contact part with its master), which share no slave node and
+whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
+without `master:` presses its body on the rigid foundation as in a one-body scene (beside
+pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
+version: q1, slave faces a side of their box (normal to x, y or z; pairs may face
+different axes). A contact part may have its own `friction:` (a number or an expression,
+as contact.friction) on its nodes.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
@@ -117,12 +122,34 @@ def _lower_surface(b, lo, hi, where):
                          f"{np.nanmax(v):g}]")
 
 
+def _part_friction(name, part):
+    """A contact part's own friction: a number >= 0 or an expression in x, y, z (checked
+    here; its values on the nodes: fem/pairs_scene.py)."""
+    SceneError, fr = _scene.SceneError, part["friction"]
+    where = f"boundary part {name!r}: friction"
+    if part.get("type") != "contact":
+        raise SceneError(f"{where} belongs to a contact part")
+    if isinstance(fr, bool) or not isinstance(fr, (int, float, str)):
+        raise SceneError(f"{where} must be a number or an expression in x, y, z, got "
+                         f"{_scene._shown(fr)}")
+    if isinstance(fr, str):
+        try:
+            expression.parse(fr)
+        except expression.ExpressionError as e:
+            raise SceneError(f"{where}: {str(e).splitlines()[0]}") from None
+    elif not np.isfinite(fr) or fr < 0:
+        raise SceneError(f"{where} must be a finite number >= 0, got {fr!r}")
+
+
 def check_parts(scene):
-    """The parts' `body` and `master` keys: known bodies, one pair, a master on a contact
-    part only; SceneError naming the part."""
+    """The parts' `body` and `master` keys: known bodies, a master on a contact part only,
+    two pairs never on the same two faces; SceneError naming the part. (Which nodes the
+    pairs share is checked on the mesh: fem/pairs.py.)"""
     SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
-    bodies, pairs = scene["bodies"], 0
+    bodies, pairs = scene["bodies"], {}
     for name, part in scene["boundary"].items():
+        if isinstance(part, dict) and "friction" in part:
+            _part_friction(name, part)
         if not isinstance(part, dict) or not ("body" in part or "master" in part):
             continue
         if "body" in part and (not isinstance(part["body"], str) or part["body"] not in bodies):
@@ -144,9 +171,9 @@ def check_parts(scene):
         if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
             raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, value]")
         numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
-        pairs += 1
-    if pairs > 1:
-        raise SceneError(f"{pairs} contact pairs: one contact part with a master (for now)")
-    if pairs and any(p.get("type") == "contact" and "master" not in p
-                     for p in scene["boundary"].values()):
-        raise SceneError("a contact pair and a rigid foundation in one scene: not yet")
+        faces = frozenset([(part["body"], tuple(part.get("plane") or ())),
+                           (m["body"], tuple(plane))])
+        if faces in pairs:
+            raise SceneError(f"boundary parts {pairs[faces]!r} and {name!r} pair the same "
+                             f"two faces: one contact part per pair")
+        pairs[faces] = name

@@ -104,6 +104,44 @@ def two_blocks(friction=0.0, p=0.01, shifted=False, young=(1.0, 1.0), poisson=0.
     return sc
 
 
+def three_blocks(friction=0.0, p=0.01, young=(1.0, 1.0, 1.0), poisson=0.3, cells=(5, 7, 4),
+                 push=None):
+    """Three bodies stacked, two contact pairs (tests/fem/test_pairs_many.py): a base
+    [0,1]^2 x [0,0.5], a middle block [0,1]^2 x [0.5,1] and a top [0,1]^2 x [1,1.5], their
+    faces `cells` x `cells` (non-matching at both interfaces), the top pressed by p;
+    symmetry planes x = 0, y = 0 through all, the base's bottom held in z. Pairs `upper`
+    (the top's bottom on the middle's top) and `lower` (the middle's bottom on the base's
+    top). push: instead, the top's upper face moved by this displacement, the base's
+    bottom clamped, the lower bodies wider (-0.1, 1.1 and -0.05, 1.05: no node meets a
+    node, no symmetry planes)."""
+    names, mat = ("base", "middle", "top"), [{"young": e, "poisson": poisson} for e in young]
+    ext = [((-0.1, -0.1), (1.1, 1.1)), ((-0.05, -0.05), (1.05, 1.05)), ((0, 0), (1, 1))] \
+        if push is not None else [((0.0, 0.0), (1.0, 1.0))] * 3
+    sc = {"name": "three_blocks",
+          "bodies": {n: {"lower": [*ext[i][0], 0.5 * i], "upper": [*ext[i][1], 0.5 * i + 0.5],
+                         "cells": [cells[i], cells[i], 3 if push is None else 2],
+                         "material": mat[i]} for i, n in enumerate(names)},
+          "boundary": {"press": {"type": "traction", "body": "top", "plane": ["z", 1.5],
+                                 "traction": [0.0, 0.0, -p]},
+                       "upper": {"type": "contact", "body": "top", "plane": ["z", 1.0],
+                                 "master": {"body": "middle"}},
+                       "lower": {"type": "contact", "body": "middle", "plane": ["z", 0.5],
+                                 "master": {"body": "base"}},
+                       "bottom": {"type": "dirichlet", "body": "base", "plane": ["z", 0.0],
+                                  "components": ["z"]},
+                       "sym_x": {"type": "symmetry", "plane": ["x", 0.0]},
+                       "sym_y": {"type": "symmetry", "plane": ["y", 0.0]}},
+          "contact": {"friction": friction}, "solver": {"mode": "newton", "newton_rtol": 1e-12}}
+    if push is not None:
+        b = sc["boundary"]
+        for k in ("press", "sym_x", "sym_y"):
+            b.pop(k)
+        b["bottom"] = {"type": "dirichlet", "body": "base", "plane": ["z", 0.0]}
+        b["top"] = {"type": "dirichlet", "body": "top", "plane": ["z", 1.5],
+                    "displacement": list(push)}
+    return sc
+
+
 def solve(sc, comm=None):
     return ContactProblem(sc, comm or PETSc.COMM_WORLD).solve()
 

@@ -16,7 +16,7 @@ import os
 import numpy as np
 import pytest
 from conftest import (PAPER, ROOT, block_scene, fields, paper_scene, rel_err, solve,
-                      two_blocks)
+                      three_blocks, two_blocks)
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -129,6 +129,27 @@ def test_two_bodies(friction):
         mpi = par.comm.tompi4py()           # cells (the base's) not all on one rank
         mine = (par.cs.local_size > 0, bool(np.any(par.disc.body_of == 0)))
         assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
+
+
+@pytest.mark.parametrize("case", ["sheared_F0.3", "patch_F0", "on_foundation"])
+def test_three_bodies(case):
+    """Three blocks stacked, two pairs (fem/pairs.py: Z = I + both pairs' E): the top pushed
+    down and sideways with F = 0.3 (stick and slip), the same with the base on the rigid
+    foundation (a contact part beside the pairs), or the frictionless patch test of three
+    materials (both interfaces slide): the partition cuts both interfaces; the same answer
+    and Newton step count as on one rank."""
+    sc = three_blocks(young=(3.0, 1.0, 2.0)) if case == "patch_F0" else \
+        three_blocks(friction=0.3, push=(0.002, 0.002, -0.004))
+    if case == "on_foundation":
+        sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
+    du, dp, par, ser = _compare(sc, EXACT)
+    assert du < TOL and dp < TOL, (du, dp)
+    assert par.iterations()["inner_total"] == ser.iterations()["inner_total"]
+    # both pairs' slave nodes (and the base's 6 x 6 bottom ones)
+    assert par.cs.size == 5 * 5 + 8 * 8 + (36 if case == "on_foundation" else 0)
+    if MPI.COMM_WORLD.size >= 2:                        # slave nodes on several ranks
+        sizes = par.comm.tompi4py().allgather(par.cs.local_size)
+        assert sum(n > 0 for n in sizes) > 1, sizes
 
 
 def test_cli_files_on_all_ranks(mpi_tmp_path):

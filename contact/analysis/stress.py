@@ -177,11 +177,13 @@ def peak(comm, values, where):
 
 
 def contact_basis(cs):
-    """(3, 3): row c = the direction in x, y, z of the contact-space component c (t1, t2,
-    n), read from the contact set's dofs (the frame's basis off the axes)."""
-    B = basis(cs.normal) if cs.off_axes else np.eye(3)
-    comps = [int(d[0] % 3) for d in cs.dofs] if cs.local_size else [0, 1, 2]
-    return B[comps] * np.array([1.0, 1.0, cs.sign])[:, None]
+    """(m, 3, 3): per owned contact node, row c = the direction in x, y, z of its
+    contact-space component c (t1, t2, n), read from the contact set's components (the
+    frame's basis off the axes); n's sign is cs.sign's (a contact pair's, per node:
+    contact_state)."""
+    if cs.off_axes:
+        return np.broadcast_to(basis(cs.normal), (cs.local_size, 3, 3))
+    return np.eye(3)[cs.components]
 
 
 def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
@@ -211,7 +213,7 @@ def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
     use = np.zeros_like(friction)
     ok = (status > 0) & (bound > 0.0)
     use[ok] = friction[ok] / bound[ok]
-    traction = np.column_stack([sig_t, g]) @ D
+    traction = np.einsum("mc,mcd->md", np.column_stack([sig_t, g * cs.sign]), D)
     return {"coordinates": cs.coordinates, "pressure": pressure, "slip": slip_norm,
             "status": status.astype(np.int32), "traction": traction, "normal_traction": g,
             "friction": friction, "friction_use": use,
@@ -233,6 +235,25 @@ def resultants(comm, state, normal):
             "tangential_force": [float(c) for c in tang],
             "area": {"contact": float(areas[1] + areas[2]), "stick": float(areas[1]),
                      "slip": float(areas[2]), "separated": float(areas[0])}}
+
+
+def pair_results(problem):
+    """{part name: resultants} of each contact pair (fem/pairs.py: the master's force on
+    the slave body over that pair's slave nodes), or None without pairs."""
+    pair, cs = problem.disc.pair, problem.cs
+    if pair is None:
+        return None
+    comm = problem.comm.tompi4py()
+    st = final(problem)["contact"]
+    rstart = problem.disc.coordinates.getOwnershipRange()[0] // 3
+    mine = rstart + cs.nodes                                 # global vertex numbers
+    out = {}
+    for p in pair.pairs:
+        on = np.isin(mine, p["slave_ids"])
+        sub = {k: st[k][on] for k in ("traction", "w", "status")} if st is not None else \
+            {"traction": np.zeros((0, 3)), "w": np.zeros(0), "status": np.zeros(0, int)}
+        out[p["name"]] = resultants(comm, sub, p["normal"])
+    return out
 
 
 _CACHE = weakref.WeakKeyDictionary()

@@ -34,22 +34,45 @@ def check(disc):
 
 
 def check_bodies(disc):
-    """SceneError when a body's dirichlet and symmetry parts and its contact pair (the
-    normal direction at the pair's slave nodes, the other body taken as rigid; the
-    tangential ones when F > 0) leave one of its rigid-body motions free. Returns whether a
+    """SceneError when a body's dirichlet and symmetry parts and its contact pairs (the
+    normal direction at each pair's slave nodes, the other body taken as rigid; the
+    tangential ones when F > 0) and the foundation leave one of its rigid-body motions
+    free. Returns whether a
     body needs the pair to be held (the Newton iteration's first step then closes every
     slave node)."""
     rstart = disc.coordinates.getOwnershipRange()[0]
     rows = np.asarray(disc.clamped_xyz, dtype=np.int64)
     together = fem.free_rigid_modes(disc.coordinates, rows)[0]   # all bodies as one
+    on_foundation = together and disc.foundation_points is not None
+    if on_foundation:                             # beside pairs (discretisation.py)
+        n = disc.foundation_normal
+        together, Q, _ = fem.free_rigid_modes(disc.coordinates, rows, disc.foundation_points,
+                                              n)
+        if together and fem.tangential_modes(Q, n) and disc.cs.has_friction:
+            together = []                         # (friction may hold them: F > 0)
     if together:
         raise SceneError(f"the bodies together are held by nothing in {', '.join(together)} "
-                         f"(their dirichlet and symmetry parts): no equilibrium; support one")
-    pair = disc.pair_bodies or ()
-    needs_pair = False
+                         f"(their dirichlet and symmetry parts"
+                         + (", the foundation the normal direction" if on_foundation else "")
+                         + "): no equilibrium; support one")
+    pair = {b for _, *both in disc.pair_bodies or () for b in both} | disc.foundation_bodies
+    needs_pair = bool(on_foundation)
+    cs = disc.cs                                  # each contact node's normal (pairs: +-e_k)
+    normals = np.asarray(disc.normal, dtype=float) if cs is None or cs.off_axes else \
+        np.eye(3)[cs.components[:, 2]]
+    ks = sorted(set().union(*disc.comm.tompi4py().allgather(
+        set() if cs is None or cs.off_axes else set(cs.components[:, 2].tolist()))))
+    tangential = lambda Q: all(fem.tangential_modes(Q, n) for n in  # noqa: E731
+                               ([disc.normal] if not ks else np.eye(3)[ks]))
+    gid = rstart // 3 + (cs.nodes if cs is not None else np.zeros(0, dtype=np.intp))
     for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
         m = mask.getArray(readonly=True)
         mine = rows[m[rows - rstart] > 0.5] if rows.size else rows
+        # its contact nodes: its own, and the slave nodes of the pairs it is the master of
+        near = m[3 * (gid - rstart // 3)] > 0.5
+        for (_, _, master), p in zip(disc.pair_bodies or (), getattr(disc.pair, "pairs", ())):
+            if master == name:
+                near |= np.isin(gid, p["slave_ids"])
         mask.destroy()
         own = fem.free_rigid_modes(disc.coordinates, mine)
         if not own[0]:
@@ -58,14 +81,14 @@ def check_bodies(disc):
             raise SceneError(f"body {name!r} is held by nothing in {', '.join(own[0])}: "
                              f"add a dirichlet or symmetry part, or a contact pair")
         needs_pair = True
-        free, Q, _ = fem.free_rigid_modes(disc.coordinates, mine, disc.cs.coordinates,
-                                          disc.normal)
-        if free and not (fem.tangential_modes(Q, disc.normal) and disc.cs.has_friction):
+        free, Q, _ = fem.free_rigid_modes(disc.coordinates, mine, cs.coordinates[near],
+                                          normals if normals.ndim == 1 else normals[near])
+        if free and not (tangential(Q) and cs.has_friction):
             raise SceneError(f"body {name!r}: its dirichlet and symmetry parts and the contact "
                              f"pair leave rigid-body motion free ({', '.join(free)}; the "
                              f"pair holds the normal direction"
                              + (", friction could hold the others, but F = 0)"
-                                if fem.tangential_modes(Q, disc.normal) else ")")
+                                if tangential(Q) else ")")
                              + ": no unique solution")
     return needs_pair
 

@@ -383,8 +383,8 @@ def rigid_modes(xyz, x0, h):
 
 def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.0)):
     """Rigid-body motions not fixed by the dofs `rows` (global, owned, x, y, z) and, if
-    given, by the normal displacement u . n (n = `normal`) at `normal_points` (owned
-    contact nodes, (m, 3)).
+    given, by the normal displacement u . n (n = `normal`, or (m, 3): each point's) at
+    `normal_points` (owned contact nodes, (m, 3)).
 
     Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
     6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
@@ -396,9 +396,9 @@ def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.
     x0, h = _rigid_frame(comm, xyz)
     loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
     R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
-    if normal_points is not None:
-        R = np.vstack([R, np.einsum("pcm,c->pm", rigid_modes(normal_points, x0, h),
-                                    np.asarray(normal, dtype=float))])
+    if normal_points is not None:                  # (normal: one, or one per point)
+        n = np.broadcast_to(np.asarray(normal, dtype=float), np.shape(normal_points))
+        R = np.vstack([R, np.einsum("pcm,pc->pm", rigid_modes(normal_points, x0, h), n)])
     lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
     Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
     names = set()

@@ -29,6 +29,8 @@ from petsc4py import PETSc
 from contact import expression, fem
 from contact.geometry import axis_of, basis
 
+#: the x, y, z components of contact space's (t1, t2, n) where n = e_k, per k
+COMPONENTS = np.array([[1, 2, 0], [0, 2, 1], [0, 1, 2]])
 FORWARD = PETSc.ScatterMode.FORWARD
 REVERSE = PETSc.ScatterMode.REVERSE
 INSERT = PETSc.InsertMode.INSERT_VALUES
@@ -50,7 +52,7 @@ class ContactSet:
 
     def __init__(self, dm, coords, faces, clamped_rows, friction, template,
                  normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), gap=None, roles=None,
-                 covered=None):
+                 covered=None, axes=None):
         comm = dm.getComm()
         self.normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
         axis = axis_of(self.normal)
@@ -58,10 +60,10 @@ class ContactSet:
         #: contact/fem/frame.py, which the discretisation builds from `nodes`
         self.off_axes = axis is None
         #: the contact space's normal component is sign times dof `axis` (a contact pair
-        #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1)
+        #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1; an
+        #: array per contact node where there are several pairs)
         self.sign = 1.0
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
-        comps = [c for c in range(3) if c != self.axis] + [self.axis]
         nv = coords.shape[0]
         # per vertex: [on a contact face, -, lumped weight]; summed over ranks
         loc = np.zeros((nv, 3))
@@ -84,8 +86,13 @@ class ContactSet:
         held = np.isin(rstart + 3 * face_nodes[:, None] + np.arange(3), clamped_rows)
         err = None
         active = on_face.copy()
+        #: per owned vertex, the dof of its normal (contact pairs along several axes: `axes`,
+        #: -1 where the set's own `axis`)
+        vaxis = np.full(owned.shape[0], self.axis, dtype=np.intp)
+        if axes is not None:
+            vaxis[axes >= 0] = axes[axes >= 0]
         if axis is not None:                     # n = +e_k: out when u_k is clamped
-            active[face_nodes[held[:, axis]]] = False
+            active[face_nodes[held[np.arange(face_nodes.size), vaxis[face_nodes]]]] = False
         else:                                    # out when clamped; partly: only along t1
             Q = basis(self.normal)
             active[face_nodes[held.all(axis=1)]] = False
@@ -108,7 +115,11 @@ class ContactSet:
         #: the owned contact nodes (block rows of the displacement Vec, local numbering)
         self.nodes = nodes
         self.local_size = nodes.size
-        self.dofs = [(rstart + 3 * nodes + c).astype(PETSc.IntType) for c in comps]
+        #: per contact node, its dofs' components in contact space (t1, t2, n): for n = e_k
+        #: the two others in order, then k
+        self.components = COMPONENTS[vaxis[nodes]]
+        self.dofs = [(rstart + 3 * nodes + self.components[:, c]).astype(PETSc.IntType)
+                     for c in range(3)]
         self.coordinates = owned_xyz[nodes]                      # (m_local, 3), for output
 
         self.template = self.create_vec(comm, template)

@@ -19,7 +19,7 @@ from petsc4py import PETSc
 from contact import fem, mesh, options
 from contact.fem.contactset import ContactSet
 from contact.fem.frame import ContactFrame
-from contact.fem.pairs import ContactPair
+from contact.fem.pairs_scene import contact_pairs, foundation_beside_pairs, part_friction
 from contact.mesh import bodies as mesh_bodies
 from contact.geometry import basis
 from contact.scene import AXES, SceneError, foundation_normal
@@ -197,30 +197,6 @@ class Discretisation:
             out.append(g)
         return out
 
-    def _pair(self, name, part):
-        """The contact pair of contact part `name` (fem/pairs.py): its slave faces are the
-        part's, its master faces those of master.body on master.plane."""
-        m, names = part["master"], list(self.bodies)
-        axis, value = AXES[part["plane"][0]], float(part["plane"][1])
-        box = self.bodies[part["body"]]            # the slave face's outward normal: -+e_axis
-        sign = -1 if abs(value - box["lower"][axis]) <= 1e-9 else \
-            1 if abs(value - box["upper"][axis]) <= 1e-9 else 0
-        if not sign:
-            raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = {value:g} "
-                             f"is no side of body {part['body']!r}")
-        master = mesh_bodies.body_faces(self.conn, self.level.reference, self.body_of,
-                                        names.index(m["body"]), AXES[m["plane"][0]],
-                                        float(m["plane"][1]))
-        if self.comm.tompi4py().allreduce(master.shape[0]) == 0:
-            raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face on "
-                             f"the plane {m['plane'][0]} = {m['plane'][1]}")
-        pair = ContactPair(self.dm, self.coords, self.parts[name], master, axis, sign,
-                           self.clamped)
-        if pair.n_slave == 0:
-            raise SceneError(f"contact pair {name!r}: the master faces of {m['body']!r} never "
-                             f"face the slave faces of {part['body']!r}")
-        return pair
-
     def _contact_diagonal(self):
         """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
         from (coulomb.py), or None for A's own. With bbar and lambda > RHO_LAMBDA_CAP mu
@@ -267,27 +243,37 @@ class Discretisation:
         self.has_contact_part = bool(cfaces)
         self.normal = foundation_normal(sc)
         self.cs = self.frame = None              # frame: contact/fem/frame.py (tilted foundation)
-        self.pair = None                         # a contact pair of two bodies (pairs.py)
-        self.pair_bodies = None                  # its (slave, master) body names
+        self.pair = None                         # the contact pairs' basis (pairs.py)
+        self.pair_bodies = None                  # [(part, slave body, master body)] per pair
+        self.foundation_bodies = set()           # beside pairs: the bodies on the foundation
+        self.foundation_points = None            # and its owned vertices' places
         if not self.has_contact_part:
             return
         con = sc.get("contact", {})
         fd = con.get("foundation", {})
         template = dm.createGlobalVec()
         rstart = template.getOwnershipRange()[0]
-        gap, covered = con.get("gap"), None
+        gap, covered, axes = con.get("gap"), None, None
         pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
         if pairs:
-            self.pair = self._pair(*pairs[0])
-            self.pair_bodies = (pairs[0][1]["body"], pairs[0][1]["master"]["body"])
+            self.pair = contact_pairs(self, pairs)
+            self.pair_bodies = [(n, p["body"], p["master"]["body"]) for n, p in pairs]
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
+            axes = self.pair.vertex_axes(template.getLocalSize() // 3, rstart // 3)
+            found = [n for n, p in bnd.items() if p["type"] == "contact" and "master" not in p]
+            if found:                            # the rigid foundation beside the pairs
+                self.foundation_bodies = foundation_beside_pairs(self, found, gap, covered,
+                                                                 axes)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template,
                              normal=self.normal if self.pair is None else np.abs(self.pair.normal),
                              point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
-                             roles=self.roles, covered=covered)
+                             roles=self.roles, covered=covered, axes=axes)
+        if self.bodies is not None:              # a contact part's own friction
+            part_friction(self)
         if self.pair is not None:                # n = -e_k: read as +e_k through Z (pairs.py)
-            self.normal, self.cs.sign = list(self.pair.normal), self.pair.sign
+            self.normal = list(self.pair.normal)
+            self.cs.sign = self.pair.signs(rstart // 3 + self.cs.nodes)   # (per node)
         template.destroy()
         if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
             self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])

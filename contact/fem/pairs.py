@@ -19,10 +19,21 @@ the displacement is Z u~ (`to_displacement`).
 
 The slave face's outward normal is +e_k or -e_k; n = -e_k is read through D, -1 on the
 slave nodes' k dof (Z = D + E): u~_k = n . g_j, so the contact set's normal is +e_k either
-way (`sign` turns its output back). Z^-1 = D - D E (E D E = 0: a master node is no slave
-node), for the rigid-body near-nullspace of A~ (GAMG), the coarse-to-fine start and the
-multigrid's finest interpolation. Rows and columns of clamped dofs are left out of E: a clamped
-slave component stays u~ = u (0), a clamped master component contributes its 0.
+way (`sign` turns its output back). Z^-1 = D - D E, for the rigid-body near-nullspace of
+A~ (GAMG), the coarse-to-fine start and the multigrid's finest interpolation: (D + E)(D -
+D E) = D^2 - D^2 E + E D - E D E = I - E + E D - E D E, and E D = E, E D E = E E = 0
+where E's columns (master nodes) are none of its rows (slave nodes), D being -1 at slave
+nodes only.
+
+Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pair's slave
+nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
+the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
+node of another (E E = 0); `_check_nodes` refuses the scene otherwise (PairError, one
+line naming the two pairs). Each pair has its own normal (+-e_k, any k): the contact set
+reads each node's normal dof (contactset.py: `axes`).
+
+Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
+(0), a clamped master component contributes its 0.
 
 A~ is assembled as it stands (fem/assembly.py, `add_turned`): Z differs from D only at the
 slave nodes, so only the cells that hold one change; each rank sums its such cells'
@@ -39,6 +50,8 @@ mesh) are gathered on every rank, every rank computes the same mortar matrices (
 same clamped dofs of the pair's nodes: which of E's entries are left out does not depend
 on the partition), and each assembles its own rows of Z.
 """
+from collections import namedtuple
+
 import numpy as np
 from petsc4py import PETSc
 
@@ -68,51 +81,106 @@ def _held(comm, clamped, nodes):
     return np.unique(np.concatenate(parts))
 
 
+class PairError(ValueError):
+    """A scene's contact pairs that this change of basis cannot hold (one line, the same on
+    every rank: the surfaces are every rank's); the discretisation raises it as SceneError."""
+
+
+#: one contact pair's surfaces: name (its contact part), slave and master (local faces (nf,
+#: 4), counter-clockwise about their body's outward normal), the slave's outward normal
+#: sign e_axis
+Surface = namedtuple("Surface", "name slave master axis sign")
+
+
+def _check_nodes(parts):
+    """PairError unless E E = 0 and no row of E is two pairs' (module docstring): no node
+    is a slave node of two pairs (its face nodes), no slave node (a row of E) of one pair
+    a master node (a column of E) of another."""
+    for i, a in enumerate(parts):
+        for b in parts[i + 1:]:
+            if np.intersect1d(a["sid"], b["sid"]).size:
+                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r} share slave "
+                                f"nodes: a node may be the slave node of one pair only")
+        for b in parts:
+            if b is not a and np.intersect1d(a["rows"], b["cols"]).size:
+                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r}: a slave node "
+                                f"of {a['name']!r} is a master node of {b['name']!r} (a slave "
+                                f"face may not be another pair's master face)")
+
+
 class ContactPair:
-    """The change of basis Z = I + E of a slave and a master surface (module docstring).
+    """The change of basis Z = I + E of one or several contact pairs, E the sum of each
+    pair's (module docstring).
 
-    dm, coords: the mesh; slave, master: local faces (nf, 4), counter-clockwise about their
-    body's outward normal; axis, sign: the slave's outward normal is sign e_axis; clamped:
-    global clamped rows."""
+    dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows."""
 
-    def __init__(self, dm, coords, slave, master, axis, sign, clamped):
+    def __init__(self, dm, coords, surfaces, clamped):
         comm = dm.getComm()
         self.comm = comm
         g = dm.createGlobalVec()
         self._rows, self.n_nodes = g.getOwnershipRange(), g.getSize() // 3
         g.destroy()
         gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
-        xs, fs, sid = _gathered(comm, gidx, coords, slave)
-        xm, fm, mid = _gathered(comm, gidx, coords, master)
+        parts = [self._surface(comm, gidx, coords, s) for s in surfaces]
+        _check_nodes(parts)
+        #: the normal n into the slave bodies (the foundation's normal of a one-body scene;
+        #: several pairs: the first's, each pair's own in `pairs`)
+        self.normal, self.axis = parts[0]["normal"], surfaces[0].axis
+        #: per pair: name, normal, its covered slave nodes and all its slave face's nodes
+        #: (global vertex numbers)
+        self.pairs = [{"name": p["name"], "normal": p["normal"], "slave_ids": p["rows"],
+                       "n_slave": int(p["rows"].size), "slave_face": p["sid"],
+                       "axis": s.axis} for p, s in zip(parts, surfaces)]
+        cat = lambda k: np.concatenate([p[k] for p in parts])           # noqa: E731
+        #: per slave face node (global vertex number): whether the master covers it, and
+        #: its gap n . (X_j - sum_l P_jl X_l)
+        self.slave_ids, self.covered, self.gaps = cat("sid"), cat("ok"), cat("gaps")
+        self.n_slave = int(self.covered.sum())
+        #: d = -1 on the slave nodes' axis dof where n = -e_axis (u~ . e_axis = n . g_j),
+        #: so that the contact set reads n as +e_axis (contactset.py; `signs` for output)
+        self._flipped = np.concatenate([p["rows"] for p in parts if p["d"] < 0] +
+                                       [np.zeros(0, dtype=np.int64)])
+        srow, mcol, v = cat("srow"), cat("mcol"), cat("v")
+        order = np.argsort(srow, kind="stable")                      # E's rows in order
+        held = _held(comm, clamped, np.union1d(self.slave_ids, cat("mid")))
+        flip = np.concatenate([3 * p["rows"] + s.axis for p, s in zip(parts, surfaces)
+                               if p["d"] < 0] + [np.zeros(0, dtype=np.int64)])
+        self._turning(self._coupling(srow[order], mcol[order], v[order], held),
+                      np.sort(cat("rows")), flip)
+        self.Z, self.Zinv = (self._assemble(flip, inverse) for inverse in (False, True))
+
+    @staticmethod
+    def _surface(comm, gidx, coords, s):
+        """One pair's mortar coupling (gathered surfaces: every rank the same): its slave
+        face nodes `sid`, which the master covers `ok`, their gaps, E's entries (srow,
+        mcol, v: global vertex numbers, P_jl), E's rows and columns, the master face
+        nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
+        xs, fs, sid = _gathered(comm, gidx, coords, s.slave)
+        xm, fm, mid = _gathered(comm, gidx, coords, s.master)
         mt = mortar_matrices(xs, fs, xm, fm)
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
         keep = ok[mt.rows]
         r, c, v = mt.rows[keep], mt.cols[keep], mt.values[keep] / rowsum[mt.rows[keep]]
-        #: the normal n into the slave body (the foundation's normal of a one-body scene)
-        self.normal = np.zeros(3)
-        self.normal[axis] = -float(sign)
-        self.axis = axis
-        #: per slave node (global vertex number): its gap n . (X_j - sum_l P_jl X_l)
+        normal = np.zeros(3)
+        normal[s.axis] = -float(s.sign)
         proj = np.zeros((xs.shape[0], 3))
         np.add.at(proj, r, v[:, None] * xm[c])
-        self.slave_ids = sid
-        self.covered = ok
-        self.gaps = (xs - proj) @ self.normal
+        gaps = (xs - proj) @ normal
         # touching faces: a gap of rounding size has the sign of the summation order, which
         # the partition sets (the surfaces are gathered in rank order); 0 it is, so that the
         # first Newton step's active set is the same on every partition (8 ranks: a node
         # open at +1e-17 took one more step than on 1)
         scale = max(np.abs(xs).max(initial=0.0), np.abs(xm).max(initial=0.0), 1e-300)
-        self.gaps[np.abs(self.gaps) <= 64.0 * np.finfo(float).eps * scale] = 0.0
-        self.n_slave = int(ok.sum())
-        #: d = -1 on the slave nodes' axis dof where n = -e_axis (u~ . e_axis = n . g_j),
-        #: so that the contact set reads n as +e_axis (contactset.py; `sign` for output)
-        self.sign = -1.0 if sign > 0 else 1.0
-        held = _held(comm, clamped, np.union1d(sid, mid))
-        self._turning(self._coupling(sid[r], mid[c], v, held), sid[ok])
-        flip = 3 * sid[ok] + axis if self.sign < 0 else np.zeros(0, dtype=np.int64)
-        self.Z, self.Zinv = (self._assemble(flip, inverse) for inverse in (False, True))
+        gaps[np.abs(gaps) <= 64.0 * np.finfo(float).eps * scale] = 0.0
+        return {"name": s.name, "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
+                "mcol": mid[c], "v": v, "rows": sid[ok], "cols": np.unique(mid[c]),
+                "mid": mid, "normal": normal, "d": -1.0 if s.sign > 0 else 1.0}
+
+    def signs(self, ids):
+        """D's entry on the normal dof of the slave nodes `ids` (global vertex numbers):
+        -1 where their pair's n = -e_axis, else 1 (the contact set's `sign`)."""
+        return np.where(np.isin(ids, self._flipped), -1.0, 1.0)
 
     def _coupling(self, srow, mcol, val, held):
         """E by node: (slave node, master node, P_jm, (n, 3) the components kept) of each
@@ -122,10 +190,10 @@ class ContactPair:
         keep &= ~np.isin(3 * mcol[:, None] + np.arange(3), held)
         return srow, mcol, val, keep
 
-    def _turning(self, coupling, nodes):
+    def _turning(self, coupling, nodes, flip):
         """Z's rows at the slave nodes `nodes` (global, sorted) in padded node arrays, for
         turning element matrices (element_matrices): the master nodes (-1 padded), P_jm
-        per component kept, and D's diagonal."""
+        per component kept, and D's diagonal (-1 at the dofs `flip`)."""
         srow, mcol, val, keep = self._e = coupling
         self._nodes = nodes
         at = np.searchsorted(nodes, srow)
@@ -136,8 +204,7 @@ class ContactPair:
         self._masters[at, slot] = mcol
         self._weights[at, slot] = val[:, None] * keep
         self._d = np.ones((nodes.size, 3))
-        if self.sign < 0:
-            self._d[:, self.axis] = -1.0
+        self._d[np.searchsorted(nodes, flip // 3), flip % 3] = -1.0
 
     def _assemble(self, flip, inverse):
         """Z = D + E (inverse: Z^-1 = D - D E) as an AIJ Mat (block size 3), D the diagonal
@@ -286,6 +353,15 @@ class ContactPair:
         gap[loc[mine]] = self.gaps[mine]
         cov[loc[mine]] = self.covered[mine]
         return gap, cov
+
+    def vertex_axes(self, nv_owned, rstart_block):
+        """Per owned vertex, the axis k of its pair's normal (+-e_k) at the slave face
+        vertices, -1 elsewhere (the contact set's normal dofs: contactset.py)."""
+        out = np.full(nv_owned, -1, dtype=np.intp)
+        for p in self.pairs:
+            loc = p["slave_face"] - rstart_block
+            out[loc[(loc >= 0) & (loc < nv_owned)]] = p["axis"]
+        return out
 
     def from_displacement_rows(self, P):
         """Z^-1 P (a new Mat): an interpolation into x, y, z turned into this basis (the

@@ -19,6 +19,24 @@ def _tolerances(problem):
     return tol
 
 
+def _pairs(problem):
+    """(contact_pair, contact_pairs) of summary.json (_summary)."""
+    d = problem.disc
+    if d.pair is None:
+        return None, None
+    forces, bnd = stress.pair_results(problem), problem.scene["boundary"]
+    fr = problem.scene.get("contact", {}).get("friction", 0.0)
+    each = {name: {"slave": slave, "master": master, "slave_nodes": p["n_slave"],
+                   "normal": [float(c) for c in p["normal"]],
+                   "friction": bnd[name].get("friction", fr), "contact_result": forces[name]}
+            for (name, slave, master), p in zip(d.pair_bodies, d.pair.pairs)}
+    one = None
+    if len(each) == 1:
+        one = {k: v for k, v in next(iter(each.values())).items()
+               if k not in ("contact_result", "friction")}
+    return one, each
+
+
 def summary(problem, time_total):
     """The dictionary written to summary.json (keys documented in the README)."""
     s = _summary(problem, time_total)
@@ -34,6 +52,7 @@ def summary(problem, time_total):
 def _summary(problem, time_total):
     comm = problem.comm
     mpicomm = comm.tompi4py()
+    pair, pairs = _pairs(problem)
     return {
         "scene": problem.scene.get("name", "scene"),
         "nd": problem.nd,
@@ -64,14 +83,13 @@ def _summary(problem, time_total):
         "held_by_friction": problem.friction_held is not None,
         "foundation_normal": [float(c) for c in problem.normal],
         "contact_frame": problem.frame is not None,
-        # several bodies (scene_bodies.py): their names, and the contact pair's slave and
-        # master bodies and slave nodes (contact_result is then the master's force on the
-        # slave body); None: one body on the foundation
+        # several bodies (scene_bodies.py): their names; a scene with one contact pair its
+        # slave and master bodies and slave nodes (contact_result is then the master's
+        # force on the slave body), with several null; `contact_pairs` each pair's by its
+        # part's name, its contact_result too; None: one body on the foundation
         "bodies": list(problem.disc.bodies) if problem.disc.bodies is not None else None,
-        "contact_pair": None if problem.disc.pair is None else {
-            "slave": problem.disc.pair_bodies[0], "master": problem.disc.pair_bodies[1],
-            "slave_nodes": problem.disc.pair.n_slave,
-            "normal": [float(c) for c in problem.disc.pair.normal]},
+        "contact_pair": pair,
+        "contact_pairs": pairs,
         "steps": problem.step_log,
         "skipped": problem.skipped,
         "energy": res.energy(problem),
