@@ -77,6 +77,14 @@ BBAR_LAMBDA_MU = 1e5
 #: 2371 in 31 s; q2p1 there: 5 steps); the beam converges (Nd 8), which a set-up cannot tell
 BBAR_REFUSE_LAMBDA_MU = 1e6
 
+#: the elements whose u-block multigrid smooths by Richardson + SOR (multigrid.setup) instead
+#: of Chebyshev + point-block Jacobi: q2p1 on Hertz (nu = 0.4999, GMRES + the full Schur
+#: factorisation), Chebyshev -> SOR: nd 3, 1 rank, 261 -> 108 Krylov iterations, solve 60.3
+#: -> 42.0 s; 2 ranks 270 -> 104, 40.3 -> 26.5 s; nd 2, 1 rank 120 -> 63, 19.4 -> 16.2 s
+#: (2 ranks 11.5 -> 12.6 s: 6 Newton steps against 4); the beam, N = 4: 87 -> 72. Not bbar
+#: (Hertz nd 3, nu = 0.4999: 2.3 -> 2.5 s; the beam, Nd 8: 0.6 -> 0.8 s)
+SOR_ELEMENTS = ("q2p1",)
+
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
 DEFAULTS = {"pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
             "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg",
@@ -215,7 +223,8 @@ class Split:
             pc.setUp()
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
-            with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT)):
+            with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT,
+                                           sor=self.element in SOR_ELEMENTS)):
                 ku.setFromOptions()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):

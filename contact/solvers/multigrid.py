@@ -200,11 +200,12 @@ class Multigrid:
             self._finest = Pf
         return self._finest
 
-    def setup(self, ksp, coarse_lu_max=COARSE_LU_MAX):
+    def setup(self, ksp, coarse_lu_max=COARSE_LU_MAX, sor=False):
         """Make ksp's PC a PCMG on this hierarchy (before ksp.setFromOptions, so that
         -<prefix>pc_type and the levels' options still apply); returns the option
         defaults to insert around setFromOptions. The coarsest level is factored up to
-        coarse_lu_max dofs, else solved by one GAMG cycle."""
+        coarse_lu_max dofs, else solved by one GAMG cycle. sor: the levels smoothed by
+        Richardson + SOR instead of Chebyshev (a host smoother: not with GPU Vecs)."""
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.MG)
         pc.setMGLevels(self.n_levels)
@@ -217,6 +218,9 @@ class Multigrid:
             if self.lines.get(j) is not None and not gpu_vecs():
                 spc.setType(PETSc.PC.Type.PYTHON)
                 spc.setPythonContext(line_smoother.LineSmoother(self.lines[j]))
+            elif sor and not gpu_vecs():
+                pc.getMGSmoother(j).setType(PETSc.KSP.Type.RICHARDSON)
+                spc.setType(PETSc.PC.Type.SOR)
             else:
                 spc.setType(smoother)
         if self.hierarchy.levels[0].n_dofs > coarse_lu_max:
