@@ -148,6 +148,15 @@ CASES = [
      "-newton_load_substep_min must be in [0, 0.5]"),
     ("rigid-motion-free", lambda t: ["-friction", "0", "-scene", scene_file(
         t, _set(["z"], "boundary", "clamped", "components"))], "rigid-body motion free"),
+    # a pair whose slave is the stiffer body (1e3 x): its Newton failure says to swap them
+    # (swapped, it converges: stability-bodies.md, bodies-stiff1e3-plate-slave)
+    ("pair-stiff-slave", lambda t: [
+        "-scene", os.path.join(ROOT, "runs", "scenes", "punch_on_plate.yaml"),
+        "-scene_bodies_punch_material_young", "7e7", "-newton_max_it", "10"],
+     "contact pair 'interface': its slave body 'punch' is 1000 times stiffer than its "
+     "master 'plate': make the softer body the slave"),
+    ("bbar-past-its-limit", lambda t: ["-element", "bbar", "-poisson", "0.4999999"],
+     "lambda / mu = 5.0e+06 > 1e+06): its Q1-P0 pressure is not inf-sup stable"),
     ("missing-part", lambda t: ["-scene", scene_file(
         t, _set(["x", 5.0], "boundary", "end", "plane"))], "no cell face lies on the plane"),
     ("no-boundary-section", lambda t: ["-scene", scene_file(t, _del("boundary"))],

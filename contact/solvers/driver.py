@@ -20,7 +20,7 @@ from contact.solvers.paper.apg import APG
 from contact.solvers.coulomb import CoulombNewton
 from contact.fem.discretisation import DEFAULT_RAMP
 from contact.solvers.paper.fixedpoint import FixedPoint
-from contact.solvers.loop import ResidualCheckError
+from contact.solvers.loop import ConvergenceError, ResidualCheckError
 from contact.solvers.paper.ssn import SemismoothNewton
 from contact.solvers.solution import Solution
 from contact.scene import ramp_factor
@@ -81,12 +81,40 @@ class NewtonLoops:
         with options.inserted(newton_defaults(split, solvers.multigrid)):
             self.inner.set_from_options(disc.scene)
         self.inner.set_load(b, gap, path)
+        self.stiff_slaves = stiff_slaves(disc)
 
     def solve(self, x, l, g0):
-        """x in place (from its start), l <- the pressure R_n / w; returns g = l (F > 0)."""
-        self.inner.solve(x)
+        """x in place (from its start), l <- the pressure R_n / w; returns g = l (F > 0).
+        A ConvergenceError on a scene whose pair has the stiffer body as its slave says so."""
+        try:
+            self.inner.solve(x)
+        except ConvergenceError as e:
+            if self.stiff_slaves:
+                e.args = (f"{e.args[0]}; {self.stiff_slaves}",)
+            raise
         self.inner.pressure(x, l)
         return l.copy() if self.cs.has_friction else None
+
+
+#: a contact pair whose slave body is this many times stiffer (Young's modulus) than its
+#: master is named when the Newton iteration fails (stiff_slaves): punch_on_plate.yaml at
+#: Nd 2, the punch 1e3 x the plate's E as the slave, DIVERGED_MAX_IT; the plate as the
+#: slave 4 steps (runs/results/stability-bodies.md); 1e2 and below converged either way
+STIFF_SLAVE = 10.0
+
+
+def stiff_slaves(disc):
+    """The advice for the pairs of `disc` whose slave body is STIFF_SLAVE or more times
+    stiffer than its master ("" if none): the softer body should be the slave (the dual
+    mortar's multipliers live on the slave side, e.g. Popp, Gee & Wall 2009)."""
+    if not disc.pair_bodies or disc.bodies is None:
+        return ""
+    young = {n: float(b["material"]["young"]) for n, b in disc.bodies.items()}
+    return "; ".join(
+        f"contact pair {part!r}: its slave body {s!r} is {young[s] / young[m]:.4g} times "
+        f"stiffer than its master {m!r}: make the softer body the slave (body: {m}, "
+        f"master: {{body: {s}}})"
+        for part, s, m in disc.pair_bodies if young[s] >= STIFF_SLAVE * young[m])
 
 
 def newton_defaults(split, mg):
