@@ -14,6 +14,9 @@ surface, gathered for them; nothing of the volume).
                             (contact/analysis/estimate.py), where the run has a coarse level
   load_path.png             quasi-static runs: normal and tangential resultants and the
                             stick / slip areas against the load parameter t
+With several bodies and several contact parts the three contact figures are drawn for each
+part apart, named contact_status_<part>.png etc. (each pair's slave face, each face on the
+foundation, seen along +e_k of its plane).
 The contact face is drawn in the foundation's plane (coordinates along t1, t2 of
 geometry.basis: x and y for the paper's foundation); faces touching a clamped node (not a
 contact node) are hatched. A contact zone much smaller than the face is zoomed into.
@@ -367,17 +370,35 @@ def load_path(data, path):
     _save(fig, path)
 
 
+def _part(data, k, part):
+    """The figures' data of contact part k alone (several bodies: each pair's slave face and
+    each face on the foundation apart; drawn together, the faces of a body pressed from
+    both sides would overlap): its faces, the nodes on them, its normal and resultant."""
+    faces = data["contact_faces"][data["contact_face_parts"] == k]
+    c = data["contact"]
+    idx = _match(faces.reshape(-1, 3), c["coordinates"])
+    nodes = np.unique(idx[idx >= 0])
+    return dict(data, contact={key: v[nodes] for key, v in c.items()}, contact_faces=faces,
+                normal=np.asarray(part["normal"], dtype=float),
+                contact_result=part["result"], name=f"{data['name']} ({part['name']})")
+
+
 def write_all(data, outdir, target=lambda p: p):
     """Every figure this run has, into outdir (each file at target(path): the staged
     temporary name). Returns the file names and the body's magnification."""
     names, scale = [], None
     if data["contact"] is not None and data["contact"]["coordinates"].shape[0]:
-        face = Face(data)
-        for name, draw in (("contact_status.png", contact_status),
-                           ("contact_pressure.png", contact_pressure),
-                           ("contact_displacement.png", contact_displacement)):
-            draw(data, face, target(os.path.join(outdir, name)))
-            names.append(name)
+        views = [(data, "")] if not data.get("contact_parts") else \
+            [(_part(data, k, p), "_" + p["name"]) for k, p in enumerate(data["contact_parts"])]
+        for d, suffix in views:
+            if not d["contact"]["coordinates"].shape[0]:
+                continue
+            face = Face(d)
+            for name, draw in (("contact_status", contact_status),
+                               ("contact_pressure", contact_pressure),
+                               ("contact_displacement", contact_displacement)):
+                draw(d, face, target(os.path.join(outdir, name + suffix + ".png")))
+                names.append(name + suffix + ".png")
     if data["surface"]["X"].shape[0]:
         scale = body_von_mises(data, target(os.path.join(outdir, "body_von_mises.png")))
         names.append("body_von_mises.png")

@@ -165,15 +165,39 @@ def surface(problem, body, u=None):
             "error_indicator": eta}
 
 
+def _contact_names(problem):
+    return [n for n, p in problem.scene["boundary"].items() if p["type"] == "contact"]
+
+
+def _contact_parts(problem, summary):
+    """With several bodies and several contact parts (pairs, the foundation beside them):
+    [{name, normal (+e_k of the part's plane), result (a pair's contact_result, else
+    None)}] in contact_faces' order, each drawn on its own (figures.py); else None."""
+    names = _contact_names(problem)
+    if problem.scene.get("bodies") is None or len(names) < 2:
+        return None
+    pairs = summary.get("contact_pairs") or {}
+    out = []
+    for n in names:
+        e = np.zeros(3)
+        e["xyz".index(problem.scene["boundary"][n]["plane"][0])] = 1.0
+        out.append({"name": n, "normal": e,
+                    "result": (pairs.get(n) or {}).get("contact_result")})
+    return out
+
+
 def figure_data(problem, summary):
     """Everything figures.py draws, on rank 0 (None elsewhere); collective."""
     comm = problem.comm.tompi4py()
     st = stress.final(problem)
     surf = surface(problem, st["body"])
-    contact = faces = None
+    contact = faces = face_parts = None
     if st["contact"] is not None:
         contact = gather_state(comm, st["contact"])
         corners = _gatherv(comm, problem.coords[contact_faces(problem)])
+        face_parts = _gatherv(comm, np.concatenate(
+            [np.full(problem.parts[n].shape[0], k, dtype=np.int64)
+             for k, n in enumerate(_contact_names(problem))] or [np.zeros(0, np.int64)]))
         if comm.rank == 0:
             faces = corners.reshape(-1, 4, 3)
     if comm.rank:
@@ -186,6 +210,7 @@ def figure_data(problem, summary):
                                 .get("point", [0.0, 0.0, 0.0]), dtype=float),
             "friction": problem.scene.get("contact", {}).get("friction", 0.0),
             "surface": surf, "contact": contact, "contact_faces": faces,
+            "contact_face_parts": face_parts, "contact_parts": _contact_parts(problem, summary),
             "von_mises_max": summary.get("von_mises_max"),
             "error_indicator": summary.get("error_indicator"),
             "contact_result": summary.get("contact_result"),
