@@ -284,16 +284,39 @@ def _segments(Xs, As, planes, Xm, lam, wq):
             (Ns * w[..., None]).sum(axis=1))
 
 
-def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
+def _share(npairs, chunk, comm):
+    """This rank's pairs [lo, hi): the chunks of `chunk` pairs split evenly by count
+    across the ranks of comm (None: all), in rank order (so the chunks are those of one
+    rank computing all, and so are their Newton iterations)."""
+    if comm is None or comm.Get_size() == 1:
+        return 0, npairs
+    nchunks, size, rank = -(-npairs // chunk), comm.Get_size(), comm.Get_rank()
+    c0, c1 = (nchunks * r // size for r in (rank, rank + 1))
+    return min(c0 * chunk, npairs), min(c1 * chunk, npairs)
+
+
+def _reduce(code, vals):
+    """Coordinate form (code = row * nm + col, summed values), each code once, sorted."""
+    code, inverse = np.unique(code, return_inverse=True)
+    return code, np.bincount(inverse.ravel(), vals, minlength=code.size)
+
+
+def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25, comm=None,
+                    chunk=CHUNK):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
     about their body's outward normal (module docstring).
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
-    with `inflate`. points: the triangle rule's points per direction (triangle_rule)."""
+    with `inflate`. points: the triangle rule's points per direction (triangle_rule).
+    comm: an mpi4py communicator whose ranks all pass the same surfaces: each rank
+    integrates its share of the pairs' chunks (`chunk` pairs each, _share), the shares
+    are summed in rank order on every rank (allgather), so every rank returns the same
+    Mortar, and that of one rank to rounding (the entries whose sums span two ranks'
+    shares are summed in another order: ~1e-16 relative)."""
     xs, xm = np.asarray(xs, dtype=float), np.asarray(xm, dtype=float)
     fs, fm = np.asarray(fs, dtype=np.int64), np.asarray(fm, dtype=np.int64)
-    ns = xs.shape[0]
+    ns, nm = xs.shape[0], xm.shape[0]
     if pairs is None:
         pairs = candidate_pairs(xs, fs, xm, fm, inflate)
     planes = _planes(xs[fs])
@@ -301,8 +324,9 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
     lam, wq = triangle_rule(points)
     rows, cols, vals = [], [], []
     overlap = np.zeros(ns)
-    for start in range(0, pairs.shape[0], CHUNK):
-        s, m = pairs[start:start + CHUNK].T
+    lo, hi = _share(pairs.shape[0], chunk, comm)
+    for start in range(lo, hi, chunk):
+        s, m = pairs[start:min(start + chunk, hi)].T
         pair, Mt, Nt = _segments(xs[fs[s]], A[s], [a[s] for a in planes], xm[fm[m]],
                                  lam, wq)
         rows.append(np.broadcast_to(fs[s[pair]][:, :, None], Mt.shape).ravel())
@@ -311,8 +335,14 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25):
         overlap += np.bincount(fs[s[pair]].ravel(), Nt.ravel(), minlength=ns)
     rows, cols, vals = (np.concatenate(a) if a else np.zeros(0, dtype=t)
                         for a, t in ((rows, np.int64), (cols, np.int64), (vals, float)))
-    code, inverse = np.unique(rows * xm.shape[0] + cols, return_inverse=True)
-    values = np.bincount(inverse.ravel(), vals, minlength=code.size)
+    code, values = _reduce(rows * nm + cols, vals)
+    if comm is not None and comm.Get_size() > 1:
+        parts = comm.allgather((code, values, overlap))
+        code, values = _reduce(np.concatenate([p[0] for p in parts]),
+                               np.concatenate([p[1] for p in parts]))
+        overlap = np.zeros(ns)
+        for p in parts:
+            overlap = overlap + p[2]
     return Mortar(D=np.bincount(fs.ravel(), De.ravel(), minlength=ns),
-                  rows=code // xm.shape[0], cols=code % xm.shape[0], values=values,
+                  rows=code // nm, cols=code % nm, values=values,
                   normals=nodal_normals(xs, fs), overlap=overlap, covered=overlap > 0.0)

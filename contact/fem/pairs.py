@@ -46,7 +46,8 @@ with Galerkin coarse operators, was the way before; it is the tests' reference n
 (runs/results/two-bodies.md: the times of both).
 
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
-mesh) are gathered on every rank, every rank computes the same mortar matrices (and the
+mesh) are gathered on every rank, each rank integrates a share of the mortar matrices and
+every rank holds their sum, the same on every rank (mortar_matrices' comm) (and the
 same clamped dofs of the pair's nodes: which of E's entries are left out does not depend
 on the partition), and each assembles its own rows of Z.
 """
@@ -157,7 +158,7 @@ class ContactPair:
         nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
         xs, fs, sid = _gathered(comm, gidx, coords, s.slave)
         xm, fm, mid = _gathered(comm, gidx, coords, s.master)
-        mt = mortar_matrices(xs, fs, xm, fm)
+        mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
         keep = ok[mt.rows]
