@@ -240,12 +240,18 @@ def resultants(comm, state, normal):
 def pair_results(problem):
     """{part name: resultants} of each contact pair (fem/pairs.py: the master's force on
     the slave body over that pair's slave nodes), or None without pairs."""
-    pair, cs = problem.disc.pair, problem.cs
+    if problem.disc.pair is None:
+        return None
+    return by_pair(problem.comm.tompi4py(), problem.disc, final(problem)["contact"])
+
+
+def by_pair(comm, disc, st):
+    """{part name: resultants} of the contact state st (contact_state; None: no contact
+    nodes here) over each contact pair's slave nodes, or None without pairs."""
+    pair, cs = disc.pair, disc.cs
     if pair is None:
         return None
-    comm = problem.comm.tompi4py()
-    st = final(problem)["contact"]
-    rstart = problem.disc.coordinates.getOwnershipRange()[0] // 3
+    rstart = disc.coordinates.getOwnershipRange()[0] // 3
     mine = rstart + cs.nodes                                 # global vertex numbers
     out = {}
     for p in pair.pairs:
@@ -275,7 +281,8 @@ def final(problem):
 
 def summary(problem):
     """summary.json's additions: `contact_result` (resultant, areas; null without
-    contact nodes), `contact_result_steps` (per load increment) and `von_mises_max`
+    contact nodes), `contact_result_steps` (per load increment; with contact pairs each
+    increment's `pairs`: {part name: resultants}) and `von_mises_max`
     (the largest cell value and the centroid of its cell)."""
     comm = problem.comm.tompi4py()
     st = final(problem)
@@ -288,6 +295,8 @@ def summary(problem):
                              "of": "cell mean stress; location: the cell's centroid"}}
     steps = getattr(problem, "increments", None)
     if steps:
-        out["contact_result_steps"] = [{"load_factor": s["t"], **s["resultant"]}
-                                       for s in steps]
+        out["contact_result_steps"] = [
+            {"load_factor": s["t"], **s["resultant"],
+             **({"pairs": s["pairs"]} if s.get("pairs") is not None else {})}
+            for s in steps]
     return out
