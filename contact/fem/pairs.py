@@ -279,8 +279,13 @@ class ContactPair:
                                 (np.repeat(dof, k * a, axis=1).ravel(),
                                  np.tile(dof, (1, k * a)).ravel())),
                                shape=(Z.shape[0], Z.shape[0]))
-        R = Z.T.tocsr() @ (At @ Z)
-        return cols, (R if Ke is None else R.tobsr(blocksize=(3, 3)))
+        if Ke is None:
+            return cols, Z.T.tocsr() @ (At @ Z)
+        # the product of 3 x 3 block matrices (scipy's bsr_matmat): the same values as the
+        # CSR product's and its conversion to BSR, 4.6x faster (Nd 8 two blocks: 1.02 ->
+        # 0.22 s, runs/results/two-bodies.md)
+        Zb, Ab = (X.tobsr(blocksize=(3, 3)) for X in (Z, At))
+        return cols, Zb.T.tobsr(blocksize=(3, 3)) @ (Ab @ Zb)
 
     def pattern(self, cells):
         """The (row, column) node pairs (global) that the cells among `cells` (m, a) at
