@@ -427,3 +427,12 @@ def test_validate_two_bodies():
                   r"\(([-+.0-9]+)\)", out)
     assert m, out
     assert abs(float(m.group(1))) < 0.01 and abs(float(m.group(2))) < 0.01, out
+
+
+def test_bench_mortar_shares():
+    """runs/bench_mortar_shares.py --smoke (1 rank): the whole and the shares give the same
+    number of coupling entries (test_mortar_ranks checks their values)."""
+    out, _ = script("bench_mortar_shares.py", "--smoke")
+    lines = [ln.split() for ln in out.splitlines() if ln.startswith(("whole", "shares"))]
+    assert [ln[0] for ln in lines] == ["whole", "shares"]
+    assert lines[0][-1] == lines[1][-1] and int(lines[0][-1]) > 0
