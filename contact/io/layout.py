@@ -79,10 +79,14 @@ def _orient(q):
     return r
 
 
+def contact_names(problem):
+    """The scene's contact parts, in its order (that of contact_faces)."""
+    return [n for n, p in problem.scene["boundary"].items() if p["type"] == "contact"]
+
+
 def contact_faces(problem):
     """Local faces (f, 4) of the scene's contact parts (local vertex numbers)."""
-    faces = [problem.parts[n] for n, p in problem.scene["boundary"].items()
-             if p["type"] == "contact"]
+    faces = [problem.parts[n] for n in contact_names(problem)]
     return np.concatenate(faces) if faces else np.zeros((0, 4), dtype=np.intp)
 
 
@@ -165,15 +169,11 @@ def surface(problem, body, u=None):
             "error_indicator": eta}
 
 
-def _contact_names(problem):
-    return [n for n, p in problem.scene["boundary"].items() if p["type"] == "contact"]
-
-
 def _contact_parts(problem, summary):
     """With several bodies and several contact parts (pairs, the foundation beside them):
     [{name, normal (+e_k of the part's plane), result (a pair's contact_result, else
     None)}] in contact_faces' order, each drawn on its own (figures.py); else None."""
-    names = _contact_names(problem)
+    names = contact_names(problem)
     if problem.scene.get("bodies") is None or len(names) < 2:
         return None
     pairs = summary.get("contact_pairs") or {}
@@ -197,7 +197,7 @@ def figure_data(problem, summary):
         corners = _gatherv(comm, problem.coords[contact_faces(problem)])
         face_parts = _gatherv(comm, np.concatenate(
             [np.full(problem.parts[n].shape[0], k, dtype=np.int64)
-             for k, n in enumerate(_contact_names(problem))] or [np.zeros(0, np.int64)]))
+             for k, n in enumerate(contact_names(problem))] or [np.zeros(0, np.int64)]))
         if comm.rank == 0:
             faces = corners.reshape(-1, 4, 3)
     if comm.rank:
