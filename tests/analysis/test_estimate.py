@@ -22,7 +22,7 @@ def _levels(nds, f):
 
 
 @pytest.mark.parametrize("p,element", [(1.0, "q1"), (1.5, "q1"), (2.0, "q1"), (2.9, "q1"),
-                                       (4.0, "q2")])
+                                       (3.4, "q2")])
 def test_exact_on_a_power_law(p, element):
     est = estimate.from_levels(_levels([4, 8, 16], lambda h: 2.0 + 5.0 * h ** p), element)
     e = est["max_displacement"]
@@ -44,8 +44,11 @@ def test_words_outside_the_asymptotic_range():
     fast = estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.75), "q1")
     assert fast["max_displacement"]["error"] is None              # Hertz's N at 2, 4, 8
     assert "order 3.75 outside 0.5 to 3 for q1" in fast["max_displacement"]["note"]
-    assert estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.75),
+    assert estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.25),
                                 "q2")["max_displacement"]["error"] is not None
+    q2 = estimate.from_levels(_levels([2, 4, 8], lambda h: 1.0 + h ** 4.27), "q2")
+    assert q2["max_displacement"]["error"] is None    # the graded beam's max |u|, q2 2, 4, 8
+    assert "order 4.27 outside 0.5 to 3.5 for q2" in q2["max_displacement"]["note"]
     assert estimate.from_levels(_levels([8, 16], lambda h: h), "q1") is None
 
 
