@@ -130,7 +130,8 @@ class ContactProblem:
         Nd >= 4 in the newton mode and none for the loops), prolong x, l, g to this mesh
         (transfer.py). Returns (l0, g0) contact Vecs with self.x set, or None. prolong
         False (load increments, which start from 0): the coarser levels are solved, each
-        along its own load path, only for the error estimate's values (coarse_runs)."""
+        along its own load path, only for the error estimate's values (coarse_runs) and
+        its indicator (the coarser level's last increment prolonged, not a start)."""
         levels = self.c2f_asked
         h = self.hierarchy
         lowest = 1 if h.quadratic else 0          # q2's nodes: a level above its elements'
@@ -163,6 +164,11 @@ class ContactProblem:
              "iterations": coarse.iterations(),
              **({"quantities": estimate.quantities(coarse)} if estimating else {})}]
         start = self._prolonged_start(coarse) if prolong else None
+        if not prolong and estimating:
+            # load increments: the coarser level's last increment prolonged, P u_2h, for
+            # estimate.cell_indicator only (each level starts from 0)
+            self._prolonged = transfer.prolong_displacement(
+                h.prolongation(self.level), coarse, self, coarse.x, self.x.duplicate())
         if coarse.error_indicator is not None and h.kind == "box":
             #: the coarser level's indicator along each axis (estimate.slab_errors): with
             #: this level's, the local orders of contact/adapt.py's grading
