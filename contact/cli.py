@@ -127,7 +127,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         if e is not None and e["error"] is None:
             failure = f"{quantity} {e['note']}"
             break
-        if e is None and (s["load_steps"] > 1 or problem.c2f_asked == 0):
+        if e is None and problem.c2f_asked == 0:
             failure = s["error_estimate_note"]       # no levels to estimate from, ever
             break
         nxt = resources.dofs(dict(sc, mesh=dict(sc["mesh"], nd=2 * problem.nd)),
