@@ -21,13 +21,18 @@ import numpy as np
 
 
 def prolong_displacement(P, coarse, fine, xc, xf):
-    """xf <- P xc: the coarse problem's x at the fine nodes (through x, y, z when either
-    problem has a contact frame), 0 at fine.clamped. Collective; returns xf."""
-    u = coarse.disc.to_xyz(xc)                       # xc itself without a frame
+    """xf <- the fine x of P u_c: the coarse problem's displacement u_c = xc + u_D at the
+    fine nodes (through x, y, z when either problem has a contact frame), less the fine
+    prescribed displacement u_D, 0 at fine.clamped. Prolonging x itself would lose the
+    lifting in the coarse cells next to a prescribed displacement (x is 0 at its nodes,
+    u_D only at the fine level's). Collective; returns xf."""
+    u = coarse.disc.displacement(xc)                 # xc itself without a frame or u_D
     P.mult(u, xf)
     if u is not xc:
         u.destroy()
     fine.disc.to_frame(xf)
+    if fine.disc.u_D is not None:
+        xf.axpy(-1.0, fine.disc.u_D)
     if fine.disc.pair is not None:                   # a contact pair's basis (pairs.py)
         fine.disc.pair.from_displacement(xf)
     xf.setValues(fine.clamped, np.zeros(len(fine.clamped)))

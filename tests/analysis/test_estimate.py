@@ -5,8 +5,9 @@ meshes up to 5x finer) inside the issue's band 0.5 to 3, the same on 1 and 2 ran
 import os
 import sys
 
+import numpy as np
 import pytest
-from conftest import ROOT, cli, paper_scene, skip_in_parallel, solve
+from conftest import ROOT, block_scene, cli, paper_scene, skip_in_parallel, solve
 
 from contact.analysis import estimate
 from contact import options
@@ -176,6 +177,33 @@ def test_cell_indicator_sums_to_the_global_energy_norm():
         tot = pr.comm.tompi4py().allreduce(float((eta ** 2).sum()))
         assert tot == pytest.approx(total ** 2, rel=1e-12)
         assert eta.min() >= 0.0
+
+
+@pytest.mark.parametrize("lifted", [False, True], ids=["pressed", "pushed"])
+def test_indicator_is_zero_on_a_linear_solution(lifted):
+    """A block on the frictionless foundation, symmetry planes x = 0 and y = 0, its top
+    pressed by a traction or pushed down by a prescribed displacement: the solution is
+    linear (uniform compression), every level's Q1 solution is exact, so the prolonged
+    coarse solution is the fine one and the indicator vanishes (to the solver), and the
+    fine level's start is its answer. Before, the pushed block's coarse x (u - u_D, 0 at
+    the top) was prolonged without its lifting: the indicator was largest in the top
+    layer (1.6 times ||u||_a) and the start off there."""
+    top = {"type": "dirichlet", "displacement": [0.0, 0.0, -0.01], "components": ["z"]} \
+        if lifted else {"type": "traction", "traction": [0.0, 0.0, -10.0]}
+    parts = {"contact": {"plane": ["z", 0.0], "type": "contact"},
+             "top": {"plane": ["z", 1.0], **top},
+             "sx": {"plane": ["x", 0.0], "type": "symmetry"},
+             "sy": {"plane": ["y", 0.0], "type": "symmetry"}}
+    with options.inserted({"c2f_levels": "2"}):
+        pr = solve(block_scene(parts, nd=4, mode="newton"))
+    s = report.summary(pr, 0.0)
+    assert [r["nd"] for r in pr.coarse_runs] == [1, 2]
+    assert s["error_indicator"]["relative"] < 1e-8, s["error_indicator"]
+    u = pr.disc.xyz_rows(pr.displacement())
+    X = pr.disc.xyz_rows(pr.disc.coordinates)
+    eps = 0.01                                          # E = 1e3: 10 / E
+    exact = np.stack([0.3 * eps * X[:, 0], 0.3 * eps * X[:, 1], -eps * X[:, 2]], axis=1)
+    assert np.abs(u - exact).max() < 1e-9
 
 
 def test_indicator_points_at_the_clamped_edge():
