@@ -1,4 +1,4 @@
-"""Box meshes graded where the run's own error indicator puts the error (mesh.grading auto).
+"""Boxes graded where the run's own error indicator puts the error (mesh.grading auto).
 
 The error of a box mesh lives along a few edges (the clamped edge, the contact front,
 where a traction ends): the cell indicator of a solved mesh (analysis/estimate.py:
@@ -17,9 +17,14 @@ axis whose grading is `auto` (scene_grading.py; `-mesh_grading auto`: every axis
      are one graded family) work as on any box; summary.json's `grading` holds the points
      (a scene may give them back: `grading: {x: {points: [...]}}`).
 
-With -error_target (cli.py) there is no pilot after the first run: each run's grading comes
-from the indicator of the run before it (`design(scene, problem)`), so the grading follows
-the singularities as the mesh grows.
+A scene with bodies (mesh/bodies.py, q1) grades each body's auto axes (its `grading:
+auto`, or every body's with -mesh_grading auto) from the indicator on its own cells, its
+slabs those of its box (a curved lower_surface moves z, not the slabs); no local orders
+(the element's).
+
+With -error_target (cli.py) there is no pilot after the first run: each run's grading
+comes from the indicator of the run before it (`design(scene, problem)`), so the grading
+follows the singularities as the mesh grows.
 """
 import copy
 import gc
@@ -31,25 +36,36 @@ from petsc4py import PETSc
 from contact import options, scene_grading
 from contact.analysis import estimate
 from contact.fem import QUADRATIC
-from contact.mesh import grading
+from contact.mesh import bodies, grading
 from contact.problem import ContactProblem
 
 
 def axes(sc):
-    """The axes the run grades from the indicator: the scene's auto axes, every axis with
-    -mesh_grading auto; none with -mesh_grading uniform (the scene's grading dropped) or
-    off a box."""
+    """What the run grades from the indicator: a box's auto axes ["x", ...] (the scene's,
+    every axis with -mesh_grading auto), or for a scene with bodies (mesh type bodies,
+    q1) the pairs [(body, axis), ...] of the bodies' own auto gradings (every body's every
+    axis with -mesh_grading auto); none with -mesh_grading uniform (the scene's gradings
+    dropped) or on a mesh file."""
     how = options.get("mesh_grading")
     if how not in ("scene", "auto", "uniform"):
         raise ValueError(f"-mesh_grading must be scene, auto or uniform, got {how!r}")
     mesh = sc["mesh"]
+    kind = mesh.get("type", "box")
+    bodies = mesh.get("bodies", {}) if kind == "bodies" else {}
     if how == "uniform":
         mesh.pop("grading", None)
-    if mesh.get("type", "box") != "box":
+        for b in bodies.values():
+            b.pop("grading", None)
+    if kind == "bodies":
+        auto = [(name, a) for name, b in bodies.items() for a in (
+            "xyz" if how == "auto" else scene_grading.auto_axes(b))]
+    elif kind != "box":
         if how == "auto" or scene_grading.auto_axes(mesh):
-            raise ValueError(f"mesh.grading auto needs a box mesh, not a {mesh['type']} mesh")
+            raise ValueError(f"mesh.grading auto needs a box mesh or bodies, not a "
+                             f"{kind} mesh")
         return []
-    auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
+    else:
+        auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
     if auto and not options.get("error_estimate"):
         raise ValueError("mesh.grading auto grades from the error indicator, which "
                          "-error_estimate 0 turns off")
@@ -57,33 +73,59 @@ def axes(sc):
 
 
 def design(sc, solved, auto):
-    """A copy of scene `sc` whose `auto` axes are graded by the indicator of the solved
-    problem `solved` (a box of the same extent), and the words for the summary."""
+    """A copy of scene `sc` whose `auto` axes (axes(): a box's, or (body, axis) pairs) are
+    graded by the indicator of the solved problem `solved` (the same box or bodies), and
+    the words for the summary (keyed "x" on a box, "body.x" on bodies)."""
     if solved.error_indicator is None:
         raise ValueError(f"mesh.grading auto: the solve at Nd = {solved.nd} has no coarser "
                          "level, so no error indicator (a larger -nd, or -c2f_levels >= 1)")
     out = copy.deepcopy(sc)
     mesh = out["mesh"]
-    g = mesh.get("grading")
-    g = {} if not isinstance(g, dict) else g
-    lo, hi = np.asarray(mesh["lower"], float), np.asarray(mesh["upper"], float)
     order = 2 if solved.element in QUADRATIC else 1
     ratio = options.get("mesh_grading_max_ratio")
     info = {}
-    for a in auto:
-        i = grading.AXES.index(a)
-        edges, E = estimate.slab_errors(solved, i)
-        coarse = solved.coarse_slabs[i][1] if solved.coarse_slabs is not None else None
+    for key, box, i, slabs, coarse in _targets(mesh, solved, auto):
+        g = box.get("grading")
+        g = box["grading"] = {} if not isinstance(g, dict) else g
+        lo, hi = np.asarray(box["lower"], float), np.asarray(box["upper"], float)
+        edges, E = slabs
         if coarse is not None and 2 * coarse.size != E.size:
             coarse = None
-        cells = mesh["cells_per_nd"][i] * mesh["nd"] * (2 if order == 2 else 1)
+        cells = box["cells"][i] * mesh["nd"] * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
-        g[a] = {"points": [round(float(p), 10) for p in pts]}
+        g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
         h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (hi[i] - lo[i])
-        info[a] = {"points": g[a]["points"], "smallest": float(h.min()),
-                   "largest": float(h.max()), "from_nd": solved.nd}
-    mesh["grading"] = g
+        info[key] = {"points": g[grading.AXES[i]]["points"], "smallest": float(h.min()),
+                     "largest": float(h.max()), "from_nd": solved.nd}
     return out, info
+
+
+def _targets(mesh, solved, auto):
+    """Per graded axis: (info key, the box's dict (lower, upper, cells, grading: the mesh
+    section's, cells = cells_per_nd, or a body's), the axis index, (edges, E) of the
+    solved problem's indicator along it, the coarser level's E or None). A body's slabs are
+    its own cells' (disc.body_of), on its box's lattice placed by its grading alone
+    (level.reference through mesh/bodies.py's map without lower_surface: the slabs of a
+    curved lower face are those of its box); no coarser level's (local orders: the
+    element's)."""
+    if mesh.get("type", "box") != "bodies":
+        box = dict(mesh, cells=mesh["cells_per_nd"])
+        for a in auto:
+            i = grading.AXES.index(a)
+            coarse = solved.coarse_slabs[i][1] if solved.coarse_slabs is not None else None
+            yield a, box, i, estimate.slab_errors(solved, i), coarse
+        if auto:
+            mesh["grading"] = box["grading"]
+        return
+    disc = solved.disc
+    names = list(mesh["bodies"])
+    for name, a in auto:
+        b, j = mesh["bodies"][name], names.index(name)
+        pilot = disc.bodies[name]                        # the solved scene's body
+        X = bodies.body_map(disc.level.reference, dict(pilot, lower_surface=None))
+        i = grading.AXES.index(a)
+        yield f"{name}.{a}", b, i, estimate.slab_errors(
+            solved, i, cells=np.flatnonzero(disc.body_of == j), coords=X), None
 
 
 def pilot_scene(sc, auto):
@@ -95,14 +137,19 @@ def pilot_scene(sc, auto):
         raise ValueError(f"-mesh_grading_pilot {div}: the pilot needs Nd / {div} >= 1 "
                          f"(Nd = {mesh['nd']})")
     mesh["nd"] = mesh["nd"] // div
-    g = mesh.get("grading")
-    if isinstance(g, dict):
-        kept = {k: v for k, v in g.items() if k not in auto}
-        mesh["grading"] = kept
-        if not kept:
-            del mesh["grading"]
+    if mesh.get("type", "box") == "bodies":
+        boxes = [(mesh["bodies"][n], [a for m, a in auto if m == n]) for n in mesh["bodies"]]
     else:
-        mesh.pop("grading", None)
+        boxes = [(mesh, auto)]
+    for box, axes_ in boxes:
+        g = box.get("grading")
+        if isinstance(g, dict):
+            kept = {k: v for k, v in g.items() if k not in axes_}
+            box["grading"] = kept
+            if not kept:
+                del box["grading"]
+        elif axes_:
+            box.pop("grading", None)
     return out
 
 

@@ -96,7 +96,7 @@ def expand(scene):
 def _body_grading(b, where):
     """A body's grading: mesh.grading's syntax and ranges (scene._grading) on its box."""
     try:
-        scene_grading.check({"type": "box", "grading": b["grading"]}, auto=False)
+        scene_grading.check({"type": "box", "grading": b["grading"]})
     except _scene.SceneError as e:
         raise _scene.SceneError(f"{where}: " + str(e).replace("mesh.grading", "grading")) \
             from None

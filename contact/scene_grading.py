@@ -16,16 +16,16 @@ RANGE, MIN_STEP = (1e-3, 1e3), 1e-6
 
 
 def check(mesh, where="mesh.grading", auto=True):
-    """The grading of a box mesh (mesh: {type, grading}) in place (numbers as floats), or a
-    SceneError naming the first bad value. auto: whether `auto` is allowed (not yet on
-    bodies)."""
+    """The grading of a box mesh or a body (mesh: {type: box, grading}) in place (numbers
+    as floats), or a SceneError naming the first bad value. auto: whether `auto` is
+    allowed."""
     SceneError, shown = _scene.SceneError, _scene._shown
     if mesh["type"] != "box":
         raise SceneError(f"{where} needs a box mesh (mesh.type: box), not {mesh['type']!r}")
     g = mesh["grading"]
     if g == AUTO or (isinstance(g, dict) and AUTO in g.values()):
         if not auto:
-            raise SceneError(f"{where}: auto is for one-body box meshes (not yet for bodies)")
+            raise SceneError(f"{where}: auto is not allowed here")
         if g == AUTO:
             return
     _scene._check_keys(g, "grading", where)

@@ -203,6 +203,52 @@ def test_auto_grading_of_load_increments(tmp_path):
     assert err["auto"] < err["uniform"] / 1.15, err
 
 
+BALL = {"name": "ball_on_plane",
+        "bodies": {"ball": {"lower": [0.0, 0.0, 0.0], "upper": [2.0, 2.0, 2.0],
+                            "cells": [6, 6, 4], "lower_surface": "(x**2 + y**2) / 20.0",
+                            "material": {"young": 1.0, "poisson": 0.3}}},
+        "mesh": {"nd": 4},
+        "boundary": {"push": {"type": "dirichlet", "body": "ball", "plane": ["z", 2.0],
+                              "displacement": [0.0, 0.0, -0.03], "components": ["z"]},
+                     "sx": {"type": "symmetry", "plane": ["x", 0.0]},
+                     "sy": {"type": "symmetry", "plane": ["y", 0.0]},
+                     "contact": {"type": "contact", "body": "ball", "plane": ["z", 0.0]}},
+        "contact": {"friction": 0.0}}
+
+
+@skip_in_parallel
+def test_auto_grading_of_a_body(tmp_path):
+    """A ball (a box body whose lower face is z = (x^2 + y^2) / 20, R = 10) pushed on the
+    rigid plane, quarter model, -mesh_grading auto at Nd 4: the body's axes graded from a
+    pilot's indicator (its own cells, on its box's lattice), its cells finest at the
+    contact (x, y, z near 0: contact radius ~0.58) and coarsest away from it (measured x
+    0.041 to 0.224, z 0.051 to 0.401); with a block under it (two bodies) each body gets
+    its own. (Before, auto was refused on bodies.)"""
+    import yaml
+    path = tmp_path / "ball.yaml"
+    path.write_text(yaml.safe_dump(BALL))
+    s, out = _summary(tmp_path / "one", ["-scene", path, "-mesh_grading", "auto"])
+    g = s["grading"]["axes"]
+    assert set(g) == {"ball.x", "ball.y", "ball.z"} and "ball.z cells" in out
+    for a in ("x", "z"):
+        h = np.diff(np.array(g[f"ball.{a}"]["points"]))
+        n = h.size
+        assert h[: n // 6].mean() < h[-(n // 6):].mean() / 2.0, (a, h)
+    two = copy.deepcopy(BALL)
+    two["bodies"]["base"] = {"lower": [0.0, 0.0, -1.0], "upper": [2.0, 2.0, 0.0],
+                             "cells": [4, 4, 2], "material": {"young": 1.0, "poisson": 0.3}}
+    two["boundary"]["contact"] = {"type": "contact", "body": "base", "plane": ["z", 0.0],
+                                  "master": {"body": "ball"}}
+    two["boundary"]["bottom"] = {"type": "dirichlet", "body": "base", "plane": ["z", -1.0],
+                                 "components": ["z"]}
+    path.write_text(yaml.safe_dump(two))
+    s, _ = _summary(tmp_path / "two", ["-scene", path, "-mesh_grading", "auto"])
+    g = s["grading"]["axes"]
+    assert set(g) == {f"{b}.{a}" for b in ("ball", "base") for a in "xyz"}
+    h = np.diff(np.array(g["base.z"]["points"]))       # the base: finest at its top
+    assert h[-(h.size // 4):].mean() < h[: h.size // 4].mean(), h
+
+
 @skip_in_parallel
 def test_auto_grading_same_on_two_ranks(tmp_path):
     """The pilot's indicator and so the points are the same on 1 and 2 ranks (1e-8), and

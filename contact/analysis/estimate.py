@@ -87,20 +87,26 @@ def cell_indicator(problem, x0):
         math.sqrt(max(tot[1], 0.0)), D
 
 
-def slab_errors(problem, axis):
+def slab_errors(problem, axis, cells=None, coords=None):
     """Where the error lives along one axis (a box mesh): (edges, E), the cell planes of
     this run's output cells normal to `axis` (0, 1, 2; global, sorted: the slabs between
     them) and the indicator's part along the axis (cell_indicator's D[:, axis]) summed
-    over each slab's cells, on every rank. For contact/adapt.py (mesh.grading auto)."""
+    over each slab's cells, on every rank. For contact/adapt.py (mesh.grading auto).
+    cells: only these local cells (a body's), their vertices' planes; coords: the local
+    vertices' places to read the planes from (default the mesh's)."""
     comm = problem.comm.tompi4py()
-    x = problem.coords[:, axis]
-    planes = np.unique(np.concatenate(comm.allgather(np.unique(x))))
+    x = (problem.coords if coords is None else coords)[:, axis]
+    conn = problem.conn if cells is None else problem.conn[cells]
+    part = problem.error_indicator[3][:, axis]
+    if cells is not None:
+        part = part[cells]
+    mine = np.unique(x if cells is None else x[conn])
+    planes = np.unique(np.concatenate(comm.allgather(mine)))
     span = planes[-1] - planes[0]
     edges = planes[np.concatenate([[True], np.diff(planes) > 1e-9 * span])]
-    part = problem.error_indicator[3][:, axis]
     E = np.zeros(edges.size - 1)
-    if problem.conn.shape[0]:
-        cen = x[problem.conn].mean(axis=1)
+    if conn.shape[0]:
+        cen = x[conn].mean(axis=1)
         j = np.clip(np.searchsorted(edges, cen) - 1, 0, E.size - 1)
         E = np.bincount(j, weights=part, minlength=E.size)
     return edges, comm.allreduce(E)
