@@ -30,12 +30,14 @@ A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_s
 linearly to 0 at its upper face (mesh/bodies.py: body_map); planes still name the box
 (`plane: [z, lower_z]` is the curved face), which a pair's master may be (not its slave).
 """
+import os
+
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 import numpy as np
 
 from contact import expression, scene_grading
 
-BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface")
+BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface", "mesh")
 
 
 def expand(scene):
@@ -58,6 +60,9 @@ def expand(scene):
         if not isinstance(b, dict) or any(k not in BODY_KEYS for k in b):
             raise SceneError(f"{where} must be a mapping of {', '.join(BODY_KEYS)}, got "
                              f"{shown(b)}")
+        if "mesh" in b:
+            _body_mesh(b, where)
+            continue
         lo = numbers(b.get("lower"), 3, f"{where}: lower")
         hi = numbers(b.get("upper"), 3, f"{where}: upper")
         if not all(h > lo_ for lo_, h in zip(lo, hi)):
@@ -66,10 +71,7 @@ def expand(scene):
         if not (isinstance(cells, list) and len(cells) == 3 and all(
                 isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cells)):
             raise SceneError(f"{where}: cells must be 3 integers >= 1, got {shown(cells)}")
-        if not isinstance(b.get("material"), dict):
-            raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
-        _scene._check_keys(b["material"], "material", f"{where}: material")
-        _scene._material(b["material"])
+        _body_material(b, where)
         if "grading" in b:
             _body_grading(b, where)
         if "lower_surface" in b:
@@ -91,6 +93,38 @@ def expand(scene):
                          "section, -young and -poisson do not apply)")
     if isinstance(scene.get("boundary"), dict):
         check_parts(scene)
+
+
+def _body_material(b, where):
+    SceneError = _scene.SceneError
+    if not isinstance(b.get("material"), dict):
+        raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
+    _scene._check_keys(b["material"], "material", f"{where}: material")
+    _scene._material(b["material"])
+
+
+def _body_mesh(b, where):
+    """A gmsh body: {mesh: {type: gmsh (a .geo or .msh) or file (a .msh, read by gmsh
+    too), file, parameters: {name: number}}, material}; the file must exist."""
+    SceneError, shown, m = _scene.SceneError, _scene._shown, b["mesh"]
+    if set(b) - {"mesh", "material"}:
+        raise SceneError(f"{where}: a body with a mesh has only mesh and material, not "
+                         f"{', '.join(sorted(set(b) - {'mesh', 'material'}))}")
+    if not isinstance(m, dict) or set(m) - {"type", "file", "parameters"} or \
+            m.get("type") not in ("gmsh", "file") or not isinstance(m.get("file"), str):
+        raise SceneError(f"{where}: mesh must be {{type: gmsh|file, file: <.geo or .msh>, "
+                         f"parameters: {{...}}}}, got {shown(m)}")
+    if m["type"] == "file" and not m["file"].endswith(".msh"):
+        raise SceneError(f"{where}: a body's mesh of type file is a gmsh .msh (read by gmsh), "
+                         f"got {m['file']!r}")
+    if not os.path.isfile(m["file"]):
+        raise SceneError(f"{where}: mesh file {m['file']} does not exist")
+    params = m.setdefault("parameters", {})
+    if not isinstance(params, dict) or not all(
+            isinstance(k, str) and _scene._number(v) for k, v in params.items()):
+        raise SceneError(f"{where}: mesh.parameters must map names to finite numbers, got "
+                         f"{shown(params)}")
+    _body_material(b, where)
 
 
 def _body_grading(b, where):
@@ -150,30 +184,56 @@ def check_parts(scene):
     for name, part in scene["boundary"].items():
         if isinstance(part, dict) and "friction" in part:
             _part_friction(name, part)
-        if not isinstance(part, dict) or not ("body" in part or "master" in part):
+        if not isinstance(part, dict) or not ("body" in part or "master" in part or
+                                              "physical" in part):
             continue
         if "body" in part and (not isinstance(part["body"], str) or part["body"] not in bodies):
             raise SceneError(f"boundary part {name!r}: no body {shown(part['body'])} (the "
                              f"bodies: {', '.join(bodies)})")
+        if "physical" in part:
+            _physical_part(name, part, bodies)
         if "master" not in part:
             continue
         m = part["master"]
         if part.get("type") != "contact" or "body" not in part:
             raise SceneError(f"boundary part {name!r}: master belongs to a contact part "
                              f"that names its body")
-        if not isinstance(m, dict) or set(m) - {"body", "plane"} or \
-                not isinstance(m.get("body"), str) or m["body"] not in bodies:
+        if not isinstance(m, dict) or set(m) - {"body", "plane", "physical"} or \
+                not isinstance(m.get("body"), str) or m["body"] not in bodies or \
+                "plane" in m and "physical" in m:
             raise SceneError(f"boundary part {name!r}: master must be {{body: <one of "
-                             f"{', '.join(bodies)}>, plane: [x|y|z, value]}}, got {shown(m)}")
+                             f"{', '.join(bodies)}>, plane: [x|y|z, value] or physical: "
+                             f"<group>}}, got {shown(m)}")
         if m["body"] == part["body"]:
             raise SceneError(f"boundary part {name!r}: the master is the slave's own body")
-        plane = m.setdefault("plane", part.get("plane"))
-        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
-            raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, value]")
-        numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
-        faces = frozenset([(part["body"], tuple(part.get("plane") or ())),
-                           (m["body"], tuple(plane))])
+        if "physical" in m:
+            _physical_part(f"{name}'s master", m, bodies)
+            where = ("physical", m["physical"])
+        else:
+            plane = m.setdefault("plane", part.get("plane"))
+            if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
+                raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, "
+                                 f"value] (the slave's plane unless given)")
+            numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
+            where = tuple(plane)
+        faces = frozenset([(part["body"], tuple(part.get("plane") or
+                                                ("physical", part.get("physical")))),
+                           (m["body"], where)])
         if faces in pairs:
             raise SceneError(f"boundary parts {pairs[faces]!r} and {name!r} pair the same "
                              f"two faces: one contact part per pair")
         pairs[faces] = name
+
+
+def _physical_part(name, part, bodies):
+    """A part on a gmsh physical group (`physical:`) names its body, a gmsh body (which
+    groups it has is known once its mesh is read: discretisation.py)."""
+    SceneError, shown = _scene.SceneError, _scene._shown
+    body = part.get("body")
+    if not (isinstance(body, str) and body in bodies and "mesh" in bodies[body]):
+        gmsh = ", ".join(b for b, v in bodies.items() if isinstance(v, dict) and "mesh" in v)
+        raise SceneError(f"boundary part {name!r}: physical names a group of a gmsh body: "
+                         f"give body: <one of {gmsh or 'none'}>, got body {shown(body)}")
+    if not isinstance(part["physical"], (str, int)) or isinstance(part["physical"], bool):
+        raise SceneError(f"boundary part {name!r}: physical must be a group name")
+    part["physical"] = str(part["physical"])
