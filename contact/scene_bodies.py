@@ -11,8 +11,8 @@
       interface: {type: contact, body: punch, plane: [z, 0.5],
                   master: {body: base}}          # the master face: base's plane z = 0.5
 
-Each body is a box of hexahedra (cells times the scene's nd, -nd) with its own material;
-the meshes of two bodies are independent (mesh/bodies.py). A boundary part names its body
+Each body is a box of hexahedra (cells times the scene's nd, -nd) or a gmsh mesh (below)
+with its own material; the meshes of two bodies are independent (mesh/bodies.py). A boundary part names its body
 (`body:`; without it a plane part takes the faces of every body on it: a symmetry plane).
 A contact part with `master:` is a pair: its faces are the slave side, the master's are
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
@@ -29,6 +29,21 @@ A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_s
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
 linearly to 0 at its upper face (mesh/bodies.py: body_map); planes still name the box
 (`plane: [z, lower_z]` is the curved face), which a pair's master may be (not its slave).
+
+A body may instead be read by gmsh (all hexahedra, as for a one-body gmsh scene):
+
+      punch: {mesh: {type: gmsh, file: ../../meshes/box.geo, parameters: {z0: 0.5}},
+              material: {young: 1.0, poisson: 0.3}}
+
+(`type: file` takes a gmsh .msh, read by gmsh too; a relative file is relative to the
+scene file; the parameter nd is the scene's coarse nd unless given). Its boundary parts
+are its planes or its physical surface groups, `{body: punch, physical: top}` (a part on
+a group names its body); a pair's master may be a group, `master: {body: NAME,
+physical: GROUP}` (curved too), the slave a group or a plane that is one flat side of
+its body normal to x, y or z (checked on the mesh: fem/pairs_scene.py). With a gmsh body
+-nd is the coarse level's, as for one gmsh mesh: box bodies have cells x nd there, and
+-mesh_refine K refines all K times (mesh/hierarchy.py). A gmsh body's place is not
+checked against the other bodies' (box bodies must not overlap each other).
 """
 import os
 
@@ -41,8 +56,9 @@ BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface", 
 
 
 def expand(scene):
-    """Check `bodies:` and set the mesh (type bodies) and material (the first body's: what
-    a one-body reader of the scene sees) sections from it; idempotent."""
+    """Check `bodies:` (boxes and gmsh bodies) and set the mesh (type bodies) and material
+    (the first body's: what a one-body reader of the scene sees) sections from it;
+    idempotent."""
     SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
     bodies = scene["bodies"]
     if not isinstance(bodies, dict) or not bodies:
