@@ -120,7 +120,8 @@ class Discretisation:
         m = sc["mesh"]
         self.nd = self.level.nd
         self.skipped = []                        # what this scene does not need (reported)
-        if m.get("type", "box") != "gmsh":
+        if m.get("type", "box") != "gmsh" and not (m["type"] == "bodies" and any(
+                map(mesh_bodies.read, m["bodies"].values()))):
             self.skipped.append("gmsh (not a gmsh mesh)")
         lv = self.level                          # the mesh (hierarchy.py): dm, conn, coords
         self.dm, self.conn, self.coords = dm, conn, coords = lv.dm, lv.conn, lv.coords
