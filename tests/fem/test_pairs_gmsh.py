@@ -170,6 +170,31 @@ def test_shipped_hertz_two_bodies_gmsh(comm):
     assert abs(a["a_fit"] / a["a_hertz"] - 1.0) < 1e-2
 
 
+def test_a_msh_body(comm, mpi_tmp_path):
+    """A body of type file: a gmsh .msh (meshes/box.geo meshed and written by gmsh, read
+    by gmsh as a body): the sheared punch's answer of the .geo body, to rounding."""
+    msh = os.path.join(mpi_tmp_path, "punch.msh")
+    if comm.getRank() == 0:
+        import gmsh
+        gmsh.initialize(readConfigFiles=False, interruptible=False)
+        try:
+            gmsh.option.setNumber("General.Terminal", 0)
+            par = gmsh_body([0, 0, 0.5], [1, 1, 1], [2, 2, 3])["mesh"]["parameters"]
+            for k, v in dict(par, nd=1).items():
+                gmsh.parser.setNumber(k, [float(v)])
+            gmsh.merge(BOX)
+            gmsh.model.mesh.generate(3)
+            gmsh.write(msh)
+        finally:
+            gmsh.finalize()
+    comm.tompi4py().barrier()
+    sc = _sheared(True)
+    sc["bodies"]["punch"]["mesh"] = {"type": "file", "file": msh}
+    runs = [solve(scenes.validate(s), comm) for s in (_sheared(True), sc)]
+    assert all(r.converged for r in runs)
+    _same(runs[1], runs[0], 1e-12)
+
+
 @only_in_parallel
 def test_parallel_is_the_serial_one():
     """The sheared gmsh punch on 2 ranks and on 1 (COMM_SELF): the same answer to 1e-8."""
