@@ -12,8 +12,9 @@
                   master: {body: base}}          # the master face: base's plane z = 0.5
 
 Each body is a box of hexahedra (cells times the scene's nd, -nd) or a gmsh mesh (below)
-with its own material; the meshes of two bodies are independent (mesh/bodies.py). A boundary part names its body
-(`body:`; without it a plane part takes the faces of every body on it: a symmetry plane).
+with its own material; the meshes of two bodies are independent (mesh/bodies.py). A
+boundary part names its body (`body:`; without it a plane part takes the faces of every
+body on it: a symmetry plane).
 A contact part with `master:` is a pair: its faces are the slave side, the master's are
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
 coupled by the dual mortar (fem/pairs.py). A scene may have several pairs (a stack of
@@ -21,7 +22,7 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1, slave faces a side of their box (normal to x, y or z; pairs may face
+version: q1, slave faces a flat side of their body (normal to x, y or z; pairs may face
 different axes). A contact part may have its own `friction:` (a number or an expression,
 as contact.friction) on its nodes.
 
