@@ -162,7 +162,7 @@ class MeshHierarchy:
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
             if self.kind in ("box", "bodies"):
                 place_(lv)
-            if self.kind != "box":                        # physical groups' faces
+            if self.kind in ("gmsh", "file") or self.physical_names:   # groups' faces
                 (surface_masks if j else mark_surfaces)(dm, lv.dm)
             self.levels.append(lv)
         dm.destroy()
