@@ -84,7 +84,8 @@ def create_mesh(comm, bodies, nd=1):
             try:
                 conn, X, gm = _body_cells(b, nd)
             except Exception as e:   # (gmsh's): every rank must hear of it
-                err = f"body {name!r}: {e if isinstance(e, MeshError) else repr(e)}"
+                err = f"body {name!r}: " + (str(e) if isinstance(e, MeshError) else
+                                            f"cannot read its mesh: {type(e).__name__}: {e}")
                 break
             groups[name] = list(gm)
             start = sum(c.shape[0] for c in conns)
