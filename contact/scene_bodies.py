@@ -113,6 +113,7 @@ def expand(scene):
 
 
 def _body_material(b, where):
+    """A body's material {young, poisson} (scene._material's ranges)."""
     SceneError = _scene.SceneError
     if not isinstance(b.get("material"), dict):
         raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
