@@ -142,8 +142,10 @@ class ContactProblem:
         if levels > below:
             note = (f"coarse-to-fine levels beyond {below} (the mesh hierarchy has "
                     f"{below} below Nd = {self.nd}: "
-                    + ("Nd has no more factors of 2)" if h.kind in ("box", "bodies")
-                       else "a mesh file is one level)"))
+                    + ("Nd has no more factors of 2)" if h.kind == "box" or
+                       h.kind == "bodies" and not any(
+                           "mesh" in b for b in self.scene["mesh"]["bodies"].values())
+                       else "a mesh file is one level: -mesh_refine K)"))
             if note not in self.skipped:
                 self.skipped.append(note)
             levels = below

@@ -48,6 +48,8 @@ def dofs(scene, element):
     counted before the mesh is read (mesh files)."""
     m = scene["mesh"]
     if m.get("type") == "bodies":                        # several boxes (scene_bodies.py)
+        if any("mesh" in b for b in m["bodies"].values()):     # a gmsh body: read first
+            return None
         return sum(3 * math.prod(int(m.get("nd", 1)) * int(c) + 1 for c in b["cells"])
                    for b in m["bodies"].values())
     if m.get("type", "box") != "box":

@@ -45,8 +45,8 @@ SCHEMA = {
                "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
     "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
-    "body part": ("plane", "type", "traction", "components", "displacement", "ramp", "body",
-                  "master", "friction"),
+    "body part": ("plane", "physical", "type", "traction", "components", "displacement",
+                  "ramp", "body", "master", "friction"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -118,7 +118,7 @@ def _bounded(node, done, inside=frozenset(), depth=1):
 
 def load(path):
     """The scene file at `path` as a dict, its limits (MAX_*) checked before any value is
-    built from it; a relative mesh.file is taken relative to the scene file."""
+    built from it; a relative mesh.file (a body's too) is taken relative to the scene file."""
     try:
         with open(path, "rb") as f:
             text = f.read(MAX_BYTES + 1)
@@ -138,8 +138,10 @@ def load(path):
         raise SceneError(f"scene file {path} must hold a mapping")
     data.setdefault("name", os.path.splitext(os.path.basename(path))[0])
     mesh = data.get("mesh")
-    if isinstance(mesh, dict) and isinstance(mesh.get("file"), str):   # relative to the scene
-        mesh["file"] = os.path.join(os.path.dirname(os.path.abspath(path)), mesh["file"])
+    bodies = data.get("bodies") if isinstance(data.get("bodies"), dict) else {}
+    for m in [mesh] + [b.get("mesh") for b in bodies.values() if isinstance(b, dict)]:
+        if isinstance(m, dict) and isinstance(m.get("file"), str):   # relative to the scene
+            m["file"] = os.path.join(os.path.dirname(os.path.abspath(path)), m["file"])
     return data
 
 
@@ -404,7 +406,7 @@ def _rest(scene):
             raise SceneError(f"boundary part {name!r}: give either plane: [x|y|z, value] or "
                              f"physical: <gmsh physical group name>")
         if "physical" in part:
-            if scene["mesh"]["type"] != "gmsh":
+            if scene["mesh"]["type"] not in ("gmsh", "bodies"):  # (bodies: scene_bodies.py)
                 raise SceneError(f"boundary part {name!r}: physical names need a gmsh mesh "
                                  f"(mesh.type: gmsh), not {scene['mesh']['type']!r}")
             if not isinstance(part["physical"], (str, int)) or isinstance(part["physical"], bool):

@@ -11,9 +11,10 @@
       interface: {type: contact, body: punch, plane: [z, 0.5],
                   master: {body: base}}          # the master face: base's plane z = 0.5
 
-Each body is a box of hexahedra (cells times the scene's nd, -nd) with its own material;
-the meshes of two bodies are independent (mesh/bodies.py). A boundary part names its body
-(`body:`; without it a plane part takes the faces of every body on it: a symmetry plane).
+Each body is a box of hexahedra (cells times the scene's nd, -nd) or a gmsh mesh (below)
+with its own material; the meshes of two bodies are independent (mesh/bodies.py). A
+boundary part names its body (`body:`; without it a plane part takes the faces of every
+body on it: a symmetry plane).
 A contact part with `master:` is a pair: its faces are the slave side, the master's are
 the faces of `master.body` on `master.plane` (default: the slave's plane); the two are
 coupled by the dual mortar (fem/pairs.py). A scene may have several pairs (a stack of
@@ -21,7 +22,7 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1, slave faces a side of their box (normal to x, y or z; pairs may face
+version: q1, slave faces a flat side of their body (normal to x, y or z; pairs may face
 different axes). A contact part may have its own `friction:` (a number or an expression,
 as contact.friction) on its nodes.
 
@@ -29,18 +30,36 @@ A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_s
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
 linearly to 0 at its upper face (mesh/bodies.py: body_map); planes still name the box
 (`plane: [z, lower_z]` is the curved face), which a pair's master may be (not its slave).
+
+A body may instead be read by gmsh (all hexahedra, as for a one-body gmsh scene):
+
+      punch: {mesh: {type: gmsh, file: ../../meshes/box.geo, parameters: {z0: 0.5}},
+              material: {young: 1.0, poisson: 0.3}}
+
+(`type: file` takes a gmsh .msh, read by gmsh too; a relative file is relative to the
+scene file; the parameter nd is the scene's coarse nd unless given). Its boundary parts
+are its planes or its physical surface groups, `{body: punch, physical: top}` (a part on
+a group names its body); a pair's master may be a group, `master: {body: NAME,
+physical: GROUP}` (curved too), the slave a group or a plane that is one flat side of
+its body normal to x, y or z (checked on the mesh: fem/pairs_scene.py). With a gmsh body
+-nd is the coarse level's, as for one gmsh mesh: box bodies have cells x nd there, and
+-mesh_refine K refines all K times (mesh/hierarchy.py). A gmsh body's place is not
+checked against the other bodies' (box bodies must not overlap each other).
 """
+import os
+
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 import numpy as np
 
 from contact import expression, scene_grading
 
-BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface")
+BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface", "mesh")
 
 
 def expand(scene):
-    """Check `bodies:` and set the mesh (type bodies) and material (the first body's: what
-    a one-body reader of the scene sees) sections from it; idempotent."""
+    """Check `bodies:` (boxes and gmsh bodies) and set the mesh (type bodies) and material
+    (the first body's: what a one-body reader of the scene sees) sections from it;
+    idempotent."""
     SceneError, shown, numbers = _scene.SceneError, _scene._shown, _scene._numbers
     bodies = scene["bodies"]
     if not isinstance(bodies, dict) or not bodies:
@@ -58,6 +77,9 @@ def expand(scene):
         if not isinstance(b, dict) or any(k not in BODY_KEYS for k in b):
             raise SceneError(f"{where} must be a mapping of {', '.join(BODY_KEYS)}, got "
                              f"{shown(b)}")
+        if "mesh" in b:
+            _body_mesh(b, where)
+            continue
         lo = numbers(b.get("lower"), 3, f"{where}: lower")
         hi = numbers(b.get("upper"), 3, f"{where}: upper")
         if not all(h > lo_ for lo_, h in zip(lo, hi)):
@@ -66,10 +88,7 @@ def expand(scene):
         if not (isinstance(cells, list) and len(cells) == 3 and all(
                 isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in cells)):
             raise SceneError(f"{where}: cells must be 3 integers >= 1, got {shown(cells)}")
-        if not isinstance(b.get("material"), dict):
-            raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
-        _scene._check_keys(b["material"], "material", f"{where}: material")
-        _scene._material(b["material"])
+        _body_material(b, where)
         if "grading" in b:
             _body_grading(b, where)
         if "lower_surface" in b:
@@ -91,6 +110,39 @@ def expand(scene):
                          "section, -young and -poisson do not apply)")
     if isinstance(scene.get("boundary"), dict):
         check_parts(scene)
+
+
+def _body_material(b, where):
+    """A body's material {young, poisson} (scene._material's ranges)."""
+    SceneError = _scene.SceneError
+    if not isinstance(b.get("material"), dict):
+        raise SceneError(f"{where}: material must be a mapping {{young, poisson}}")
+    _scene._check_keys(b["material"], "material", f"{where}: material")
+    _scene._material(b["material"])
+
+
+def _body_mesh(b, where):
+    """A gmsh body: {mesh: {type: gmsh (a .geo or .msh) or file (a .msh, read by gmsh
+    too), file, parameters: {name: number}}, material}; the file must exist."""
+    SceneError, shown, m = _scene.SceneError, _scene._shown, b["mesh"]
+    if set(b) - {"mesh", "material"}:
+        raise SceneError(f"{where}: a body with a mesh has only mesh and material, not "
+                         f"{', '.join(sorted(set(b) - {'mesh', 'material'}))}")
+    if not isinstance(m, dict) or set(m) - {"type", "file", "parameters"} or \
+            m.get("type") not in ("gmsh", "file") or not isinstance(m.get("file"), str):
+        raise SceneError(f"{where}: mesh must be {{type: gmsh|file, file: <.geo or .msh>, "
+                         f"parameters: {{...}}}}, got {shown(m)}")
+    if m["type"] == "file" and not m["file"].endswith(".msh"):
+        raise SceneError(f"{where}: a body's mesh of type file is a gmsh .msh (read by gmsh), "
+                         f"got {m['file']!r}")
+    if not os.path.isfile(m["file"]):
+        raise SceneError(f"{where}: mesh file {m['file']} does not exist")
+    params = m.setdefault("parameters", {})
+    if not isinstance(params, dict) or not all(
+            isinstance(k, str) and _scene._number(v) for k, v in params.items()):
+        raise SceneError(f"{where}: mesh.parameters must map names to finite numbers, got "
+                         f"{shown(params)}")
+    _body_material(b, where)
 
 
 def _body_grading(b, where):
@@ -150,30 +202,56 @@ def check_parts(scene):
     for name, part in scene["boundary"].items():
         if isinstance(part, dict) and "friction" in part:
             _part_friction(name, part)
-        if not isinstance(part, dict) or not ("body" in part or "master" in part):
+        if not isinstance(part, dict) or not ("body" in part or "master" in part or
+                                              "physical" in part):
             continue
         if "body" in part and (not isinstance(part["body"], str) or part["body"] not in bodies):
             raise SceneError(f"boundary part {name!r}: no body {shown(part['body'])} (the "
                              f"bodies: {', '.join(bodies)})")
+        if "physical" in part:
+            _physical_part(name, part, bodies)
         if "master" not in part:
             continue
         m = part["master"]
         if part.get("type") != "contact" or "body" not in part:
             raise SceneError(f"boundary part {name!r}: master belongs to a contact part "
                              f"that names its body")
-        if not isinstance(m, dict) or set(m) - {"body", "plane"} or \
-                not isinstance(m.get("body"), str) or m["body"] not in bodies:
+        if not isinstance(m, dict) or set(m) - {"body", "plane", "physical"} or \
+                not isinstance(m.get("body"), str) or m["body"] not in bodies or \
+                "plane" in m and "physical" in m:
             raise SceneError(f"boundary part {name!r}: master must be {{body: <one of "
-                             f"{', '.join(bodies)}>, plane: [x|y|z, value]}}, got {shown(m)}")
+                             f"{', '.join(bodies)}>, plane: [x|y|z, value] or physical: "
+                             f"<group>}}, got {shown(m)}")
         if m["body"] == part["body"]:
             raise SceneError(f"boundary part {name!r}: the master is the slave's own body")
-        plane = m.setdefault("plane", part.get("plane"))
-        if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
-            raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, value]")
-        numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
-        faces = frozenset([(part["body"], tuple(part.get("plane") or ())),
-                           (m["body"], tuple(plane))])
+        if "physical" in m:
+            _physical_part(f"{name}'s master", m, bodies)
+            where = ("physical", m["physical"])
+        else:
+            plane = m.setdefault("plane", part.get("plane"))
+            if not (isinstance(plane, list) and len(plane) == 2 and plane[0] in _scene.AXES):
+                raise SceneError(f"boundary part {name!r}: master.plane must be [x|y|z, "
+                                 f"value] (the slave's plane unless given)")
+            numbers(plane[1:], 1, f"boundary part {name!r}: master.plane's value")
+            where = tuple(plane)
+        faces = frozenset([(part["body"], tuple(part.get("plane") or
+                                                ("physical", part.get("physical")))),
+                           (m["body"], where)])
         if faces in pairs:
             raise SceneError(f"boundary parts {pairs[faces]!r} and {name!r} pair the same "
                              f"two faces: one contact part per pair")
         pairs[faces] = name
+
+
+def _physical_part(name, part, bodies):
+    """A part on a gmsh physical group (`physical:`) names its body, a gmsh body (which
+    groups it has is known once its mesh is read: discretisation.py)."""
+    SceneError, shown = _scene.SceneError, _scene._shown
+    body = part.get("body")
+    if not (isinstance(body, str) and body in bodies and "mesh" in bodies[body]):
+        gmsh = ", ".join(b for b, v in bodies.items() if isinstance(v, dict) and "mesh" in v)
+        raise SceneError(f"boundary part {name!r}: physical names a group of a gmsh body: "
+                         f"give body: <one of {gmsh or 'none'}>, got body {shown(body)}")
+    if not isinstance(part["physical"], (str, int)) or isinstance(part["physical"], bool):
+        raise SceneError(f"boundary part {name!r}: physical must be a group name")
+    part["physical"] = str(part["physical"])

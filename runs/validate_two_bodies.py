@@ -10,7 +10,10 @@ force against Hertz's P(delta) with delta = d (the top's displacement) less noth
 Boussinesq correction of each body (approach_correction at its height), first order in
 a / H only.
 
-    python runs/validate_two_bodies.py [nd ...]       (default 2 4)
+    python runs/validate_two_bodies.py [--gmsh] [nd ...]       (default 2 4)
+
+--gmsh: runs/scenes/hertz_two_bodies_gmsh.yaml, the ball read by gmsh (meshes/ball.geo;
+nd is then the coarse level's, here the only one: the box scene's mesh at the same nd).
 """
 import os
 import sys
@@ -29,20 +32,22 @@ from contact.validation.hertz import R_SPHERE, analyse, approach_correction  # n
 
 SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "scenes",
                      "hertz_two_bodies.yaml")
+GMSH_SCENE = SCENE.replace(".yaml", "_gmsh.yaml")
 
 
-def two_bodies_scene(nd):
-    sc = scenes.load(SCENE)
+def two_bodies_scene(nd, gmsh=False):
+    sc = scenes.load(GMSH_SCENE if gmsh else SCENE)
     sc.setdefault("mesh", {})["nd"] = nd
     return scenes.validate(sc)
 
 
-def study(nd):
+def study(nd, gmsh=False):
     """The solved scene at nd: Hertz's a, p0 at the computed P, and P against P(delta)."""
-    sc = two_bodies_scene(nd)
-    E, nu = (sc["bodies"]["ball"]["material"][k] for k in ("young", "poisson"))
+    sc = two_bodies_scene(nd, gmsh)
+    ball = sc["bodies"]["ball"]
+    E, nu = (ball["material"][k] for k in ("young", "poisson"))
     d = -sc["boundary"]["push"]["displacement"][2]
-    H = sc["bodies"]["ball"]["upper"][2] - sc["bodies"]["ball"]["lower"][2]
+    H = ball["mesh"]["parameters"]["H"] if gmsh else ball["upper"][2] - ball["lower"][2]
     t0 = time.perf_counter()
     pr = ContactProblem(sc, PETSc.COMM_WORLD).solve()
     t = time.perf_counter() - t0
@@ -54,9 +59,9 @@ def study(nd):
     return a
 
 
-def main(nds):
+def main(nds, gmsh=False):
     for nd in nds:
-        a = study(nd)
+        a = study(nd, gmsh)
         PETSc.Sys.Print(
             f"nd={nd} dofs={a['dofs']} nodes={a['nodes_in_contact']} P={a['P']:.5e} "
             f"a_fit={a['a_fit']:.4f} a_area={a['a_area']:.4f} a_H(P)={a['a_hertz']:.4f} "
@@ -68,4 +73,5 @@ def main(nds):
 
 
 if __name__ == "__main__":
-    main([int(n) for n in sys.argv[1:]] or [2, 4])
+    args = sys.argv[1:]
+    main([int(n) for n in args if n != "--gmsh"] or [2, 4], "--gmsh" in args)

@@ -155,6 +155,15 @@ CASES = [
         "-scene_bodies_punch_material_young", "7e7", "-newton_max_it", "10"],
      "contact pair 'interface': its slave body 'punch' is 1000 times stiffer than its "
      "master 'plate': make the softer body the slave"),
+    # a gmsh body (scene_bodies.py): its file missing, a group it does not have
+    ("gmsh-body-missing", lambda t: [
+        "-scene", os.path.join(ROOT, "runs", "scenes", "hertz_two_bodies_gmsh.yaml"),
+        "-nd", "1", "-scene_bodies_ball_mesh_file", str(t / "none.geo")],
+     "body 'ball': mesh file"),
+    ("gmsh-body-group", lambda t: [
+        "-scene", os.path.join(ROOT, "runs", "scenes", "hertz_two_bodies_gmsh.yaml"),
+        "-nd", "1", "-scene_boundary_push_physical", "lid"],
+     "boundary part 'push': body 'ball' has no physical surface 'lid' (it has: contact, "),
     ("bbar-past-its-limit", lambda t: ["-element", "bbar", "-poisson", "0.4999999"],
      "lambda / mu = 5.0e+06 > 1e+06): its Q1-P0 pressure is not inf-sup stable"),
     ("missing-part", lambda t: ["-scene", scene_file(

@@ -419,10 +419,12 @@ def test_compare_calculix(tmp_path):
     assert float(r[2]) > 1.0 and float(r[5]) > 0.1               # pressed and sheared
 
 
-def test_validate_two_bodies():
-    """runs/validate_two_bodies.py at Nd = 2 as a user runs it: two-body Hertz's contact
-    radius and peak pressure within 1 % of the closed form at the computed force."""
-    out, _ = script("validate_two_bodies.py", "2")
+@pytest.mark.parametrize("args", [["2"], ["--gmsh", "2"]])
+def test_validate_two_bodies(args):
+    """runs/validate_two_bodies.py at Nd = 2 as a user runs it (--gmsh: the ball read by
+    gmsh): two-body Hertz's contact radius and peak pressure within 1 % of the closed
+    form at the computed force."""
+    out, _ = script("validate_two_bodies.py", *args)
     m = re.search(r"nd=2 .*a_H\(P\)=\S+ \(([-+.0-9]+)\) p0_fit=\S+ p0_H\(P\)=\S+ "
                   r"\(([-+.0-9]+)\)", out)
     assert m, out

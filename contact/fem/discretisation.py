@@ -61,9 +61,19 @@ class Discretisation:
         self.blocked = bool(blocked)
         self._setup()
 
-    def _part_faces(self, name, part, conn, coords):
-        """(nf, 4) local faces of a boundary part: a plane, or a gmsh physical group."""
-        if "physical" in part:
+    def part_faces(self, name, part, conn, coords):
+        """(nf, 4) local faces of a boundary part: a plane, or a gmsh physical group (of a
+        body: its cells' faces, oriented outward; a contact pair's master, pairs_scene.py)."""
+        if "physical" in part and self.bodies is not None:     # a gmsh body's group
+            group, body = part["physical"], part["body"]
+            have = self.hierarchy.body_groups.get(body, [])
+            if group not in have:
+                raise SceneError(f"boundary part {name!r}: body {body!r} has no physical "
+                                 f"surface {group!r} (it has: {', '.join(have) or 'none'})")
+            faces = mesh_bodies.group_faces(self.dm, conn, coords, self.body_of,
+                                            list(self.bodies).index(body), group)
+            where = f"the physical surface {group!r} of body {body!r}"
+        elif "physical" in part:
             group = part["physical"]
             if group not in self.physical_names:
                 raise SceneError(f"boundary part {name!r}: the mesh has no physical surface "
@@ -110,7 +120,8 @@ class Discretisation:
         m = sc["mesh"]
         self.nd = self.level.nd
         self.skipped = []                        # what this scene does not need (reported)
-        if m.get("type", "box") != "gmsh":
+        if m.get("type", "box") != "gmsh" and not (m["type"] == "bodies" and any(
+                map(mesh_bodies.read, m["bodies"].values()))):
             self.skipped.append("gmsh (not a gmsh mesh)")
         lv = self.level                          # the mesh (hierarchy.py): dm, conn, coords
         self.dm, self.conn, self.coords = dm, conn, coords = lv.dm, lv.conn, lv.coords
@@ -120,10 +131,9 @@ class Discretisation:
         self.lattice = lv.lattice
         # (on a lattice every cell is the first, translated: its check is theirs)
         mesh.check_cells(comm, conn[:1] if self.lattice is not None else conn, coords)
-        #: several bodies (scene_bodies.py): {name: box}, and each local cell's body index
+        #: several bodies (scene_bodies.py): {name: spec}, and each local cell's body index
         self.bodies = m["bodies"] if m["type"] == "bodies" else None
-        self.body_of = None if self.bodies is None else \
-            mesh_bodies.cell_bodies(self.bodies, conn, lv.reference)
+        self.body_of = None if self.bodies is None else mesh_bodies.cell_bodies(dm)
         self.element = element_of(sc)
         #: the elements: conn itself, or q2's (hierarchy.QuadraticCells: conn (ne, 27) on
         #: this level's vertices, the faces' node roles, each cell's eighth of its element)
@@ -217,7 +227,7 @@ class Discretisation:
         """Boundary parts (faces), the dirichlet and symmetry constraints, clamped rows."""
         sc, dm, conn, coords = self.scene, self.dm, self.conn, self.coords
         bnd = sc["boundary"]
-        parts = {name: self._part_faces(name, part, conn, coords)
+        parts = {name: self.part_faces(name, part, conn, coords)
                  for name, part in bnd.items()}
         if "rotate" in sc["mesh"]:               # after the parts: planes name the mesh as read
             self.coords = coords = mesh.rotate_coordinates(dm, coords, **sc["mesh"]["rotate"])

@@ -3,6 +3,7 @@
 foundation's contact parts beside them, a contact part's own friction. Set-up only; every
 refusal is a SceneError in one line, raised on every rank alike."""
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem
@@ -25,26 +26,47 @@ def owned_on(disc, names):
     return on, start
 
 
+def slave_side(disc, name, part):
+    """(axis k, sign s) of a pair's slave faces (disc.parts[name], on the mesh's places):
+    one plane normal to e_k, the body's outward normal s e_k (fem/pairs.py's limitation);
+    SceneError otherwise (a curved face, an inner plane, a plane through a gmsh body)."""
+    mpi, faces, X = disc.comm.tompi4py(), disc.parts[name], disc.coords
+    n = fem.face_normals(faces, X)
+    k = int(np.argmax(np.abs(mpi.allreduce(n.sum(axis=0)))))
+    s = np.sign(mpi.allreduce(n[:, k].sum()))
+    at = X[faces][:, :, k] if faces.size else np.zeros((0, 4))
+    lo = mpi.allreduce(at.min(initial=np.inf), op=MPI.MIN)
+    hi = mpi.allreduce(at.max(initial=-np.inf), op=MPI.MAX)
+    off = mpi.allreduce(float(np.max(1.0 - s * n[:, k], initial=0.0)), op=MPI.MAX)
+    size = mpi.allreduce(float(np.ptp(X, axis=0).max(initial=0.0)), op=MPI.MAX)
+    if s == 0 or off > 1e-8 or hi - lo > 1e-9 * max(size, 1e-300):
+        where = f"the plane {part['plane'][0]} = {part['plane'][1]:g}" if "plane" in part \
+            else f"the physical surface {part['physical']!r}"
+        raise SceneError(f"contact pair {name!r}: its slave faces ({where} of body "
+                         f"{part['body']!r}) must be one side of the body, flat and normal "
+                         f"to x, y or z")
+    return k, int(s)
+
+
 def contact_pairs(disc, pairs):
     """The contact pairs [(name, part)] of the Discretisation disc as one change of basis
-    (fem/pairs.py): each part's faces the slave side, the faces of its master.body on
-    master.plane the master side."""
+    (fem/pairs.py): each part's faces the slave side (slave_side), the faces of its
+    master.body on master.plane (found on the unmapped boxes) or its physical group
+    master.physical (a gmsh body's) the master side."""
     names, surfaces = list(disc.bodies), []
     for name, part in pairs:
         m = part["master"]
-        axis, value = AXES[part["plane"][0]], float(part["plane"][1])
-        box = disc.bodies[part["body"]]        # the slave face's outward normal: -+e_axis
-        sign = -1 if abs(value - box["lower"][axis]) <= 1e-9 else \
-            1 if abs(value - box["upper"][axis]) <= 1e-9 else 0
-        if not sign:
-            raise SceneError(f"contact pair {name!r}: the plane {part['plane'][0]} = "
-                             f"{value:g} is no side of body {part['body']!r}")
-        master = mesh_bodies.body_faces(disc.conn, disc.level.reference, disc.body_of,
-                                        names.index(m["body"]), AXES[m["plane"][0]],
-                                        float(m["plane"][1]))
-        if disc.comm.tompi4py().allreduce(master.shape[0]) == 0:
-            raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell face "
-                             f"on the plane {m['plane'][0]} = {m['plane'][1]}")
+        axis, sign = slave_side(disc, name, part)
+        if "physical" in m:
+            master = disc.part_faces(name, {"body": m["body"], "physical": m["physical"]},
+                                     disc.conn, disc.coords)
+        else:
+            master = mesh_bodies.body_faces(disc.conn, disc.level.reference, disc.body_of,
+                                            names.index(m["body"]), AXES[m["plane"][0]],
+                                            float(m["plane"][1]))
+            if disc.comm.tompi4py().allreduce(master.shape[0]) == 0:
+                raise SceneError(f"contact pair {name!r}: body {m['body']!r} has no cell "
+                                 f"face on the plane {m['plane'][0]} = {m['plane'][1]}")
         surfaces.append(Surface(name, disc.parts[name], master, axis, sign))
     try:
         pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped)

@@ -1,27 +1,37 @@
-"""The mesh of a scene with several bodies (`bodies:`): boxes of hexahedra, one DMPlex.
+"""The mesh of a scene with several bodies (`bodies:`): boxes of hexahedra or gmsh meshes,
+one DMPlex.
 
-Each body is a box [lower, upper] of cells (nx, ny, nz) times the scene's nd; the bodies are
-the disconnected components of one uninterpolated DMPlex built on rank 0 (like a gmsh
-file: `mesh.distribute` spreads it), so one displacement Vec, one matrix and one solver
-hold them all. Boxes may touch (a punch on a plate) but not overlap; their vertices are
-never shared, so the meshes of two bodies are independent (non-matching where they meet).
+A box body is a box [lower, upper] of cells (nx, ny, nz) times the level's nd; a gmsh
+body (`mesh: {type: gmsh, file: X.geo|X.msh, parameters}`, or `type: file` for a .msh,
+read by gmsh too) is its file's hexahedra, as gmsh meshes it (gmshio.py, the parameter nd
+the coarse level's nd unless given). The bodies are the disconnected components of one
+uninterpolated DMPlex built on rank 0 (like a gmsh file: `mesh.distribute` spreads it),
+so one displacement Vec, one matrix and one solver hold them all. Bodies may touch (a
+punch on a plate); their vertices are never shared, so the meshes of two bodies are
+independent (non-matching where they meet). Box bodies must not overlap (scene_bodies.py);
+a gmsh body's place is not checked against the others'.
 
-A cell's body is the box its centre lies in (`cell_bodies`): the same on every level and
-rank, with no label to carry through distribution. A boundary part of a body (`body_faces`)
-is the faces on its plane of that body's cells, oriented counter-clockwise about the
-body's outward normal (fem/mortar.py's convention).
+A cell's body is the cell label "body" (mesh.BODY_LABEL: the body's index in the scene's
+order), set here and carried through distribution and refinement (refine.py; DMRefine,
+hierarchy.py): `cell_bodies`. A gmsh body's physical surface groups are the cell labels
+"physical:<group>" (bitmasks of faces, gmshio.py) on its cells; two bodies may have groups
+of the same name (one label, each body's faces on its cells: `group_faces`). A boundary
+part of a body on a plane (`body_faces`) is the faces there of that body's cells; either
+kind is oriented counter-clockwise about the body's outward normal (fem/mortar.py's
+convention).
 
-A body with `grading` or `lower_surface` (scene_bodies.py) is a map of its box (body_map):
-each level's vertices are the map of that level's box lattice (`place`, like
-grading.place for a box mesh), level.reference keeping the unmapped places; cells, bodies
-and boundary planes are found there, the element integrals use the mapped ones.
+A box body with `grading` or `lower_surface` (scene_bodies.py) is a map of its box
+(body_map): each level's vertices are the map of that level's box lattice (`place`, like
+grading.place for a box mesh), level.reference keeping the unmapped places; boundary
+planes are found there, the element integrals use the mapped ones. A gmsh body's vertices
+are where its file (refined: the mean of their parents) puts them.
 """
 import numpy as np
 from petsc4py import PETSc
 
 from contact import expression
 from contact.mesh.grading import graded
-from contact.mesh.plex import HEX_FACES, HEX_REF, MeshError
+from contact.mesh.plex import BODY_LABEL, HEX_FACES, HEX_REF, MeshError, labelled_cell_faces
 
 
 def box_cells(cells, lower, upper):
@@ -36,24 +46,72 @@ def box_cells(cells, lower, upper):
     return conn, X
 
 
+def read(b):
+    """Whether body b is read from a mesh file (`mesh:`, gmsh) rather than a box."""
+    return "mesh" in b
+
+
+def _body_cells(b, nd):
+    """(conn (nc, 8), coords (nv, 3), {group: (nc,) face bitmask}) of body b at nd (rank 0)."""
+    if not read(b):
+        return (*box_cells([int(c) * int(nd) for c in b["cells"]], b["lower"], b["upper"]), {})
+    from contact.mesh import gmshio               # gmsh is imported only here
+    m = b["mesh"]
+    return gmshio.read_rank0(str(m["file"]), {"nd": nd, **m.get("parameters", {})},
+                             PETSc.Options().getBool("gmsh_verbose", False))
+
+
+def _label_cells(dm, name, values, zero=False):
+    """The cell label `name` on dm's cells with the given value per cell (0 left out unless
+    `zero`); created on every rank."""
+    dm.createLabel(name)
+    label, cs = dm.getLabel(name), dm.getHeightStratum(0)[0]
+    for v in np.unique(values if zero else values[values > 0]):
+        is_ = PETSc.IS().createGeneral((np.flatnonzero(values == v) + cs).astype(PETSc.IntType),
+                                       comm=PETSc.COMM_SELF)
+        label.setStratumIS(int(v), is_)
+        is_.destroy()
+
+
 def create_mesh(comm, bodies, nd=1):
-    """Serial-on-rank-0 DMPlex of the bodies' boxes ({name: {lower, upper, cells}}, cells
-    times nd), their vertices apart."""
-    conns, coords, nv = [], [], 0
+    """Serial-on-rank-0 DMPlex of the bodies ({name: box or mesh}, box cells times nd, gmsh
+    bodies read with the parameter nd), their vertices apart, with the cell labels "body"
+    and "physical:<group>". Returns (dm, {body: its physical group names}); MeshError
+    (naming the body) on every rank."""
+    conns, coords, owner, masks, groups, nv, err = [], [], [], {}, {}, 0, None
     if comm.getRank() == 0:
-        for name, b in bodies.items():
-            cells = [int(c) * int(nd) for c in b["cells"]]
-            if min(cells) < 1:
-                raise MeshError(f"body {name!r}: cells must be >= 1, got {b['cells']}")
-            conn, X = box_cells(cells, b["lower"], b["upper"])
+        for i, (name, b) in enumerate(bodies.items()):
+            try:
+                conn, X, gm = _body_cells(b, nd)
+            except Exception as e:   # (gmsh's): every rank must hear of it
+                err = f"body {name!r}: " + (str(e) if isinstance(e, MeshError) else
+                                            f"cannot read its mesh: {type(e).__name__}: {e}")
+                break
+            groups[name] = list(gm)
+            start = sum(c.shape[0] for c in conns)
+            for g, mask in gm.items():
+                masks.setdefault(g, []).append((start, mask))
             conns.append(conn + nv)
             coords.append(X)
+            owner.append(np.full(conn.shape[0], i, dtype=np.int64))
             nv += X.shape[0]
+    err, groups = comm.tompi4py().bcast((err, groups), root=0)
+    if err:
+        raise MeshError(err)
     conn = np.concatenate(conns) if conns else np.zeros((0, 8))
     X = np.concatenate(coords) if coords else np.zeros((0, 3))
-    return PETSc.DMPlex().createFromCellList(3, np.asarray(conn, dtype=PETSc.IntType),
-                                             np.asarray(X, dtype=PETSc.RealType),
-                                             interpolate=False, comm=comm)
+    dm = PETSc.DMPlex().createFromCellList(3, np.asarray(conn, dtype=PETSc.IntType),
+                                           np.asarray(X, dtype=PETSc.RealType),
+                                           interpolate=False, comm=comm)
+    nc = conn.shape[0]
+    _label_cells(dm, BODY_LABEL, np.concatenate(owner) if owner else np.zeros(0, np.int64),
+                 zero=True)
+    for g in sorted({g for names in groups.values() for g in names}):
+        mask = np.zeros(nc, dtype=np.int64)
+        for start, m in masks.get(g, []):
+            mask[start:start + m.size] = m
+        _label_cells(dm, "physical:" + g, mask)
+    return dm, groups
 
 
 def snap(level, bodies):
@@ -61,13 +119,16 @@ def snap(level, bodies):
     box over its cells x the level's Nd), as the box kind's are (grading.place): a refined
     vertex is a mean of its parent's, which rounds differently from vertex to vertex and
     from partition to partition; snapped, the refined bodies are the bodies built whole,
-    to the bit (canonical orders sort by coordinates). A vertex's body is its cells'."""
+    to the bit (canonical orders sort by coordinates). A vertex's body is its cells'.
+    A gmsh body's vertices are left where the refinement put them."""
     x = level.coords
     vb = np.full(x.shape[0], -1, dtype=np.intp)
     if level.conn.size:
-        vb[level.conn] = cell_bodies(bodies, level.conn, x)[:, None]
+        vb[level.conn] = cell_bodies(level.dm)[:, None]
     out = x.copy()
     for i, b in enumerate(bodies.values()):
+        if read(b):                               # a gmsh body: no lattice
+            continue
         lo, hi = np.asarray(b["lower"], float), np.asarray(b["upper"], float)
         h = (hi - lo) / (np.asarray(b["cells"], float) * level.nd)
         on = vb == i
@@ -80,15 +141,16 @@ def snap(level, bodies):
     level.dm.setCoordinatesLocal(v)
 
 
-def cell_bodies(bodies, conn, coords):
-    """The index (in the scene's order) of each local cell's body: the box its centre is in."""
-    centre = coords[conn].mean(axis=1)
-    out = np.full(conn.shape[0], -1, dtype=np.intp)
-    for i, b in enumerate(bodies.values()):
-        lo, hi = np.asarray(b["lower"], float), np.asarray(b["upper"], float)
-        out[np.all((centre > lo) & (centre < hi), axis=1)] = i
+def cell_bodies(dm):
+    """The index (in the scene's order) of each local cell's body: its "body" label."""
+    cs, ce = dm.getHeightStratum(0)
+    out = np.full(ce - cs, -1, dtype=np.intp)
+    label = dm.getLabel(BODY_LABEL) if dm.hasLabel(BODY_LABEL) else None
+    for v in ([] if label is None else label.getValueIS().getIndices()):
+        pts = label.getStratumIS(int(v)).getIndices()
+        out[pts[(pts >= cs) & (pts < ce)] - cs] = int(v)
     if np.any(out < 0):
-        raise MeshError("a cell lies in no body's box (cell_bodies)")
+        raise MeshError("a cell has no body (its label \"body\" was lost: cell_bodies)")
     return out
 
 
@@ -119,6 +181,21 @@ def body_faces(conn, coords, body_of, body, axis, value, tol=1e-9):
     return faces
 
 
+def group_faces(dm, conn, coords, body_of, body, group):
+    """(nf, 4) local faces of the gmsh physical group `group` on the cells of body index
+    `body`, each counter-clockwise about the body's outward normal (away from its cell's
+    centre)."""
+    cells, k = labelled_cell_faces(dm, "physical:" + group)
+    keep = body_of[cells] == body
+    cells, k = cells[keep], k[keep]
+    faces = conn[cells[:, None], HEX_FACES[k]].astype(np.intp)
+    X = coords[faces]
+    n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
+    flip = np.einsum("ij,ij->i", n, X.mean(axis=1) - coords[conn[cells]].mean(axis=1)) < 0.0
+    faces[flip] = faces[flip][:, ::-1]
+    return faces
+
+
 def mapped(bodies):
     """Whether a body has a grading or a lower_surface (its levels are placed by `place`)."""
     return any("grading" in b or "lower_surface" in b for b in bodies.values())
@@ -141,17 +218,19 @@ def place(level, bodies):
     box: level.reference keeps the unmapped places (refinement, the search for a fine
     vertex in its parent, the boundary parts' planes), level.coords and the DM's
     coordinates (a Vec of its own: DMRefine's mesh keeps the one it had) are mapped. A
-    vertex's body is its cells' (cell_bodies on the reference: bodies that touch have
-    vertices at the same place, never shared). A refined level is snapped to its bodies'
+    vertex's body is its cells' (cell_bodies: bodies that touch have vertices at the same
+    place, never shared). A refined level is snapped to its bodies'
     lattices first (`snap`)."""
     snap(level, bodies)
     if not mapped(bodies):
         return
     X = level.reference
     of = np.full(X.shape[0], -1, dtype=np.intp)
-    of[level.conn.ravel()] = np.repeat(cell_bodies(bodies, level.conn, X), 8)
+    of[level.conn.ravel()] = np.repeat(cell_bodies(level.dm), 8)
     out = np.array(X, dtype=float, copy=True)
     for i, b in enumerate(bodies.values()):
+        if read(b):
+            continue
         on = of == i
         out[on] = body_map(X[on], b)
     level.coords, level.lattice = out, None

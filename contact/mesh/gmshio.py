@@ -56,8 +56,9 @@ def _face_masks(conn, groups, path):
     return masks
 
 
-def _read_rank0(path, parameters, verbose):
-    """(cells (nc, 8) PETSc order, coords (nv, 3), {group name: (nc,) face bitmask})."""
+def read_rank0(path, parameters, verbose):
+    """(cells (nc, 8) PETSc order, coords (nv, 3), {group name: (nc,) face bitmask}) of
+    the file on this process (rank 0 of read_gmsh; a gmsh body: mesh/bodies.py)."""
     import gmsh
 
     if not os.path.isfile(path):
@@ -143,7 +144,7 @@ def read_gmsh(comm, path, parameters=None):
     if comm.getRank() == 0:
         verbose = PETSc.Options().getBool("gmsh_verbose", False)
         try:
-            data = _read_rank0(str(path), parameters, verbose)
+            data = read_rank0(str(path), parameters, verbose)
         except MeshError as e:
             err = str(e)
         except Exception as e:     # anything else on rank 0 must not leave the others hanging

@@ -10,6 +10,10 @@ parallel.
            or K + 1 with -mesh_refine K (refined K times in parallel: Nd, 2 Nd, ..., the
            coarse-to-fine start's and the error estimate's levels)
     file   a mesh file PETSc reads, as read: one level (K + 1 with -mesh_refine K)
+    bodies several bodies (mesh/bodies.py) on one mesh: boxes only, as box (Nd0 = Nd / 2^k,
+           each body's cells x Nd0, k from all their cells); with a gmsh body, as gmsh
+           (-nd the coarse level's: box bodies cells x Nd, gmsh bodies read with the
+           parameter nd = Nd; K + 1 levels with -mesh_refine K)
 The q2 element (fem/element.py) lives on two levels: its elements are the cells of one level, its
 nodes the vertices of the next (the element's 27 nodes: its 8 refined cells' vertices).
 A q2 hierarchy (quadratic=True) is built for the node mesh, Nd_nodes = 2 Nd, so its finest
@@ -38,8 +42,9 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
-from contact.mesh.bodies import create_mesh as create_bodies, mapped
+from contact.mesh.bodies import create_mesh as create_bodies, mapped, read as read_body
 from contact.mesh.bodies import place as place_bodies
+from contact.mesh.labels import copy_cell_labels, mark_surfaces, surface_masks
 from contact.mesh.grading import local_coordinates, place
 from contact.mesh.refine import refine as refine_serial
 
@@ -106,16 +111,22 @@ class MeshHierarchy:
         refine, dmplex = options.get("mesh_refine"), options.get("mesh_refine_dmplex")
         if refine < -1:
             raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
-        if self.kind in ("box", "bodies"):       # bodies: boxes of cells x Nd (bodies.py)
+        self.body_groups = {}                   # bodies: each one's physical groups
+        read = self.kind == "bodies" and any(map(read_body, m["bodies"].values()))
+        if self.kind == "box" or self.kind == "bodies" and not read:  # boxes: cells x Nd
             per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])] if self.kind == "box" \
                 else [sum(int(np.prod(b["cells"])) for b in m["bodies"].values()), 1, 1]
             k = refinements(nd << up, per, comm.getSize(), refine + up if refine >= 0 else -1,
                             max(c2f_levels, 0) + up)
             nd0 = (nd << up) >> k
-            dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"]) \
-                if self.kind == "box" else create_bodies(comm, m["bodies"], nd0)
         else:                  # -mesh_refine K: the file's mesh refined K times (levels)
             k, nd0 = up + max(refine, 0), nd
+        if self.kind == "box":
+            dm = mesh.create_box_mesh(comm, [c * nd0 for c in per], m["lower"], m["upper"])
+        elif self.kind == "bodies":    # gmsh bodies: Nd the coarse level's, as for gmsh
+            dm, self.body_groups = create_bodies(comm, m["bodies"], nd0)
+            self.physical_names = sorted({g for v in self.body_groups.values() for g in v})
+        else:
             if self.kind == "gmsh":
                 from contact.mesh import gmshio  # gmsh is imported only here
                 params = {"nd": nd, **m.get("parameters", {})}
@@ -151,10 +162,8 @@ class MeshHierarchy:
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
             if self.kind in ("box", "bodies"):
                 place_(lv)
-            elif j == 0:
-                _mark_surfaces(dm, lv.dm)
-            else:
-                _surface_masks(dm, lv.dm)
+            if self.kind in ("gmsh", "file") or self.physical_names:   # groups' faces
+                (surface_masks if j else mark_surfaces)(dm, lv.dm)
             self.levels.append(lv)
         dm.destroy()
 
@@ -234,7 +243,7 @@ def uninterpolated(dm):
     u.uninterpolate()                                      # in place: u is the new DM
     petsc_compat.set_local_section(u.getCoordinateDM(), _vertex_section(dm, u))
     u.setCoordinatesLocal(dm.getCoordinatesLocal())
-    _copy_cell_labels(dm, u)
+    copy_cell_labels(dm, u)
     return u
 
 
@@ -257,88 +266,6 @@ def _vertex_section(dm, u):
                                                         3 * (ve - vs - 1)):
         raise MeshError("unexpected coordinate layout: coordinates must be 3 per vertex")
     return out
-
-
-def _copy_cell_labels(src, dst):
-    """The gmsh physical groups' cell labels ("physical:*", mesh.labelled_faces) of src on
-    dst, whose cells are src's, in the same numbering (DMPlexUninterpolate drops labels)."""
-    cs, ce = src.getHeightStratum(0)
-    for i in range(src.getNumLabels()):
-        name = src.getLabelName(i)
-        if not name.startswith("physical:"):
-            continue
-        dst.createLabel(name)
-        out = dst.getLabel(name)
-        label = src.getLabel(name)
-        for v in label.getValueIS().getIndices():
-            pts = label.getStratumIS(int(v)).getIndices()
-            cells = pts[(pts >= cs) & (pts < ce)].astype(PETSc.IntType)
-            is_ = PETSc.IS().createGeneral(cells, comm=PETSc.COMM_SELF)
-            out.setStratumIS(int(v), is_)
-            is_.destroy()
-
-
-def _physical_labels(dm):
-    return [n for n in (dm.getLabelName(i) for i in range(dm.getNumLabels()))
-            if n.startswith("physical:")]
-
-
-def _mark_surfaces(dm, u):
-    """Before a file mesh is refined: a label "surface:<group>" on the interpolated dm with
-    the faces of each physical group and their edges and vertices. DMRefine hands a
-    labelled point's value to every point made from it, so on each finer mesh this label
-    holds the group's faces, edges and vertices there: the cell label "physical:<group>"
-    alone cannot say that (each of a marked cell's 8 children inherits its bitmask, though
-    only some of their faces lie on the group; _surface_masks mends them). A loop over the
-    file mesh's marked cells, once."""
-    conn = mesh.cell_vertices(u)[0]
-    vs, ve = dm.getDepthStratum(0)
-    for name in _physical_labels(u):
-        cells, k = mesh.labelled_cell_faces(u, name)
-        want = {}
-        for c, kk in zip(cells.tolist(), k.tolist()):
-            want.setdefault(c, []).append(frozenset((conn[c, HEX_FACES[kk]] + vs).tolist()))
-        sname = "surface:" + name[len("physical:"):]
-        dm.createLabel(sname)
-        label = dm.getLabel(sname)
-        for c, faces in want.items():
-            for f in dm.getCone(c):
-                pts = dm.getTransitiveClosure(f)[0]
-                if frozenset(p for p in pts.tolist() if vs <= p < ve) in faces:
-                    for p in pts.tolist():
-                        label.setValue(p, 1)
-
-
-def _surface_masks(dm, u):
-    """The bitmasks of u's "physical:<group>" cell labels on a refined level (u: dm's cells
-    and vertices): face k of a marked cell is in the group when its 4 vertices are on the
-    group's surface ("surface:<group>", _mark_surfaces). Exact for the children of a
-    marked cell: of their faces, those inside the parent hold its centre, which is not on
-    the surface, and those on a parent face not in the group hold that face's centre."""
-    conn = mesh.cell_vertices(u)[0]
-    vs, ve = dm.getDepthStratum(0)
-    cs, ce = u.getHeightStratum(0)
-    for name in _physical_labels(u):
-        on = np.zeros(ve - vs, dtype=bool)
-        sl = dm.getLabel("surface:" + name[len("physical:"):])
-        if sl.getStratumSize(1):
-            pts = sl.getStratumIS(1).getIndices()
-            on[pts[(pts >= vs) & (pts < ve)] - vs] = True
-        label = u.getLabel(name)
-        cells = np.unique(np.concatenate(
-            [np.zeros(0, dtype=np.intp)] + [label.getStratumIS(int(v)).getIndices()
-                                            for v in label.getValueIS().getIndices()]))
-        cells = cells[(cells >= cs) & (cells < ce)] - cs
-        mask = (np.all(on[conn[cells][:, HEX_FACES]], axis=2)
-                << np.arange(6)).sum(axis=1) if cells.size else np.zeros(0, dtype=int)
-        u.removeLabel(name)
-        u.createLabel(name)
-        label = u.getLabel(name)
-        for v in np.unique(mask[mask > 0]):
-            is_ = PETSc.IS().createGeneral((cells[mask == v] + cs).astype(PETSc.IntType),
-                                           comm=PETSc.COMM_SELF)
-            label.setStratumIS(int(v), is_)
-            is_.destroy()
 
 
 def _shape(xi):

@@ -22,6 +22,10 @@ HEX_REF = np.array([[-1, -1, -1], [-1, 1, -1], [1, 1, -1], [1, -1, -1],
 #: the 6 faces of the hexahedron as cyclic vertex quadruples (local cone positions)
 HEX_FACES = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 3, 5, 4],
                       [1, 7, 6, 2], [0, 4, 7, 1], [3, 2, 6, 5]], dtype=np.intp)
+#: the cell label holding each cell's body (its index in the scene's `bodies:`), set when
+#: the mesh of several bodies is built (bodies.py) and carried through distribution and
+#: refinement (refine.py, hierarchy.py)
+BODY_LABEL = "body"
 #: the 27 nodes of the quadratic hexahedron (q2): reference coordinates, node
 #: 9 i + 3 j + k at (xi, eta, zeta) = (i - 1, j - 1, k - 1)
 Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)],

@@ -15,11 +15,12 @@ points' ownership (the point SF).
 The cell labels "physical:<group>" (a gmsh physical group's faces of each cell as a
 bitmask, gmshio.py) carry over exactly: child i's face k lies on its parent's face k when
 vertex i of the reference cell lies on that face's plane, and on no other parent face.
+The cell label "body" (several bodies, mesh/bodies.py) goes to the 8 children as it is.
 """
 import numpy as np
 from petsc4py import PETSc
 
-from contact.mesh.plex import HEX_EDGES, HEX_FACES, HEX_REF, Q2_REF, MeshError
+from contact.mesh.plex import BODY_LABEL, HEX_EDGES, HEX_FACES, HEX_REF, Q2_REF, MeshError
 #: each face k of HEX_FACES: the reference axis it is normal to and its side (-1 or 1)
 FACE_AXIS = np.array([int(np.flatnonzero(np.ptp(HEX_REF[f], axis=0) == 0)[0])
                       for f in HEX_FACES], dtype=np.intp)
@@ -98,7 +99,7 @@ def refine_arrays(conn, coords):
 def refine(dm, conn, coords):
     """The regular refinement of the uninterpolated DMPlex dm (its cells conn, vertex
     coordinates coords: mesh.cell_vertices) on a communicator of one process: a new
-    uninterpolated DMPlex with its physical labels carried over (module docstring)."""
+    uninterpolated DMPlex with its physical and body labels carried over (module docstring)."""
     comm = dm.getComm()
     if comm.getSize() != 1:
         raise MeshError("refine.refine runs on one process (several: DMRefine)")
@@ -107,7 +108,8 @@ def refine(dm, conn, coords):
                                              interpolate=False, comm=comm)
     cs, ce = dm.getHeightStratum(0)
     for name in (dm.getLabelName(i) for i in range(dm.getNumLabels())):
-        if not name.startswith("physical:"):
+        body = name == BODY_LABEL                    # (its values as they are, 0 too)
+        if not (body or name.startswith("physical:")):
             continue
         label = dm.getLabel(name)
         cells, masks = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
@@ -117,10 +119,11 @@ def refine(dm, conn, coords):
             cells.append(pts)
             masks.append(np.full(pts.size, int(v), dtype=np.int64))
         kids = (8 * np.concatenate(cells)[:, None] + np.arange(8)).ravel()
-        kmask = (np.concatenate(masks)[:, None] & CHILD_FACES[None, :]).ravel()
+        kmask = np.repeat(np.concatenate(masks), 8) if body else \
+            (np.concatenate(masks)[:, None] & CHILD_FACES[None, :]).ravel()
         fine.createLabel(name)
         out = fine.getLabel(name)
-        for v in np.unique(kmask[kmask > 0]):
+        for v in np.unique(kmask if body else kmask[kmask > 0]):
             is_ = PETSc.IS().createGeneral(kids[kmask == v].astype(PETSc.IntType),
                                            comm=PETSc.COMM_SELF)
             out.setStratumIS(int(v), is_)

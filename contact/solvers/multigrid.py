@@ -150,7 +150,7 @@ class Multigrid:
         # (it was not: 35 Krylov iterations against 19 on the block_incline scene at Nd 24)
         coords = lv.coords if rotate is None else mesh.turned(lv.coords, **rotate)
         groups = None if bodies is None else mesh_bodies.material_groups(
-            bodies, mesh_bodies.cell_bodies(bodies, lv.conn, lv.reference))
+            bodies, mesh_bodies.cell_bodies(lv.dm))
         A_c = fem.assemble_stiffness(lv.dm, lv.conn, coords, young, poisson,
                                      lattice=lv.lattice, groups=groups)
         P = self.hierarchy.prolongation(self.level)
