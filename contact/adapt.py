@@ -56,9 +56,12 @@ def axes(sc):
         mesh.pop("grading", None)
         for b in bodies.values():
             b.pop("grading", None)
-    if kind == "bodies":
-        auto = [(name, a) for name, b in bodies.items() for a in (
+    if kind == "bodies":                 # (a gmsh body, mesh: {...}, has no box to grade)
+        auto = [(name, a) for name, b in bodies.items() if "mesh" not in b for a in (
             "xyz" if how == "auto" else scene_grading.auto_axes(b))]
+        if how == "auto" and not auto:
+            raise ValueError("mesh.grading auto needs a box mesh or box bodies, not only "
+                             "gmsh bodies")
     elif kind != "box":
         if how == "auto" or scene_grading.auto_axes(mesh):
             raise ValueError(f"mesh.grading auto needs a box mesh or bodies, not a "
@@ -84,6 +87,9 @@ def design(sc, solved, auto):
     order = 2 if solved.element in QUADRATIC else 1
     ratio = options.get("mesh_grading_max_ratio")
     info = {}
+    # the finest level's Nd over the scene's: 1, but 2^K with a gmsh body (-nd its coarse
+    # level's, -mesh_refine K)
+    refined = max(1, solved.nd // solved.scene["mesh"]["nd"])
     for key, box, i, slabs, coarse in _targets(mesh, solved, auto):
         g = box.get("grading")
         g = box["grading"] = {} if not isinstance(g, dict) else g
@@ -91,7 +97,7 @@ def design(sc, solved, auto):
         edges, E = slabs
         if coarse is not None and 2 * coarse.size != E.size:
             coarse = None
-        cells = box["cells"][i] * mesh["nd"] * (2 if order == 2 else 1)
+        cells = box["cells"][i] * mesh["nd"] * refined * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
         h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (hi[i] - lo[i])
