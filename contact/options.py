@@ -123,10 +123,9 @@ REGISTRY = [
     Option("mesh_refine_dmplex", False, bool, "on one process too, refine with DMPlex's "
            "DMRefine (it builds every face and edge; default there: the same refinement in "
            "NumPy, contact/mesh/refine.py)", "BOOL"),
-    Option("mesh_grading", "scene", str, "box meshes and bodies: auto: every axis (of "
-           "every body) graded where the error is, from the error indicator of a pilot at "
-           "Nd / -mesh_grading_pilot (contact/adapt.py); uniform: the scene's gradings "
-           "dropped", "scene|auto|uniform"),
+    Option("mesh_grading", "scene", str, "boxes and box bodies: auto: every axis graded "
+           "where the error is, from the error indicator of a pilot at Nd / -mesh_grading_"
+           "pilot (contact/adapt.py); uniform: the gradings dropped", "scene|auto|uniform"),
     Option("mesh_grading_pilot", 2, int, "mesh.grading auto: the pilot's Nd is Nd / M", "M"),
     Option("mesh_grading_max_ratio", 30.0, float, "mesh.grading auto: the largest ratio "
            "of cell sizes along an axis", "R"),
