@@ -203,7 +203,7 @@ def test_indicator_is_zero_on_a_linear_solution(lifted):
     X = pr.disc.xyz_rows(pr.disc.coordinates)
     eps = 0.01                                          # E = 1e3: 10 / E
     exact = np.stack([0.3 * eps * X[:, 0], 0.3 * eps * X[:, 1], -eps * X[:, 2]], axis=1)
-    assert np.abs(u - exact).max() < 1e-9
+    assert np.abs(u - exact).max(initial=0.0) < 1e-9       # (a rank may own no node)
 
 
 def test_indicator_points_at_the_clamped_edge():
