@@ -57,21 +57,42 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact.fem.mortar import mortar_matrices
+from contact.fem.mortar_q2 import midpoint_deviation, nine_node_faces
 
 #: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
 #: (a sliver of master over it: the dual basis's row there is ill-conditioned)
 MIN_COVER = 1e-3
+#: q2: the edge and centre nodes of the pair's 9-node faces are the bilinear map's midpoints
+#: to this fraction of a face's diameter (the mortar's faces are bilinear: fem/mortar_q2.py)
+MIDPOINT_TOL = 1e-8
 
 
-def _gathered(comm, gidx, coords, faces):
-    """(x (n, 3), faces (nf, 4) into x, global vertex numbers (n,)) of a surface whose
-    local faces are `faces`, on every rank."""
+def _gathered(comm, gidx, coords, faces, k=4):
+    """(x (n, 3), faces (nf, k) into x, global vertex numbers (n,)) of a surface whose
+    local faces are `faces` (k nodes each: 4, or the q2 element's 9), on every rank."""
     mine = (gidx[faces], coords[faces])
     parts = comm.tompi4py().allgather(mine)
-    g = np.concatenate([p[0].reshape(-1, 4) for p in parts]).astype(np.int64)
+    g = np.concatenate([p[0].reshape(-1, k) for p in parts]).astype(np.int64)
     X = np.concatenate([p[1].reshape(-1, 3) for p in parts])
     ids, first, inv = np.unique(g.ravel(), return_index=True, return_inverse=True)
-    return X[first], inv.reshape(-1, 4), ids
+    return X[first], inv.reshape(-1, k), ids
+
+
+def _nine_node(comm, surfaces, roles):
+    """The q2 element's surfaces: each one's slave and master as 9-node faces (fem/mortar_q2.py,
+    from the refined quadrilaterals and the vertices' roles); PairError on every rank where
+    one rank's faces are not whole element faces."""
+    out, err = [], None
+    for s in surfaces:
+        try:
+            out.append(s._replace(slave=nine_node_faces(s.slave, roles),
+                                  master=nine_node_faces(s.master, roles)))
+        except ValueError as e:
+            err = err or f"contact pair {s.name!r}: {e}"
+    errs = [e for e in comm.tompi4py().allgather(err) if e]
+    if errs:
+        raise PairError(errs[0])
+    return out
 
 
 def _held(comm, clamped, nodes):
@@ -113,11 +134,15 @@ class ContactPair:
     """The change of basis Z = I + E of one or several contact pairs, E the sum of each
     pair's (module docstring).
 
-    dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows."""
+    dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows;
+    roles: the q2 element's vertex roles (hierarchy.QuadraticCells; the surfaces' faces are
+    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None."""
 
-    def __init__(self, dm, coords, surfaces, clamped):
+    def __init__(self, dm, coords, surfaces, clamped, roles=None):
         comm = dm.getComm()
         self.comm = comm
+        if roles is not None:
+            surfaces = _nine_node(comm, surfaces, roles)
         g = dm.createGlobalVec()
         self._rows, self.n_nodes = g.getOwnershipRange(), g.getSize() // 3
         g.destroy()
@@ -156,8 +181,16 @@ class ContactPair:
         face nodes `sid`, which the master covers `ok`, their gaps, E's entries (srow,
         mcol, v: global vertex numbers, P_jl), E's rows and columns, the master face
         nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
-        xs, fs, sid = _gathered(comm, gidx, coords, s.slave)
-        xm, fm, mid = _gathered(comm, gidx, coords, s.master)
+        k = s.slave.shape[1]
+        xs, fs, sid = _gathered(comm, gidx, coords, s.slave, k)
+        xm, fm, mid = _gathered(comm, gidx, coords, s.master, k)
+        if k == 9:
+            off = max(midpoint_deviation(xs[fs]), midpoint_deviation(xm[fm]))
+            if off > MIDPOINT_TOL:
+                raise PairError(f"contact pair {s.name!r}: q2 needs straight-edged faces (a "
+                                f"face's edge and centre nodes at its midpoints, off by "
+                                f"{off:.1e} of its size: a body graded along the face or "
+                                f"with a lower_surface there); use -element q1")
         mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
