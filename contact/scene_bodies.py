@@ -36,6 +36,8 @@ import numpy as np
 from contact import expression, scene_grading
 
 BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface")
+#: the elements of a scene with several bodies (auto: q1)
+BODY_ELEMENTS = ("auto", "q1", "q2")
 
 
 def expand(scene):
@@ -81,9 +83,10 @@ def expand(scene):
     mesh.update(type="bodies", bodies=bodies)
     mesh.setdefault("nd", 1)
     el = mesh.setdefault("element", "q1")
-    if el not in ("auto", "q1"):
-        raise SceneError(f"a scene with several bodies has the q1 element (for now), got {el!r}")
-    mesh["element"] = "q1"
+    if el not in BODY_ELEMENTS:
+        raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
+                         f"got {el!r}")
+    mesh["element"] = "q1" if el == "auto" else el
     scene["mesh"] = mesh
     first = next(iter(bodies.values()))["material"]
     if scene.setdefault("material", dict(first)) != first:
