@@ -21,9 +21,13 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1, slave faces a side of their box (normal to x, y or z; pairs may face
-different axes). A contact part may have its own `friction:` (a number or an expression,
-as contact.friction) on its nodes.
+version: q1 or q2 (mesh.element or -element; auto is q1), slave faces a side of their box
+(normal to x, y or z; pairs may face different axes). With q2 a pair couples the
+elements' 9-node faces (biquadratic, their dual basis: fem/mortar_q2.py), whose edge and
+centre nodes must be at the midpoints of their corners (straight edges: a body graded
+along the pair's faces, or a lower_surface master, is refused in one line; use q1).
+A contact part may have its own `friction:` (a number or an expression, as
+contact.friction) on its nodes.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading

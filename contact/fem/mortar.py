@@ -1,4 +1,5 @@
-"""Dual mortar coupling of two contact surfaces of bilinear (q1) quadrilaterals in 3D.
+"""Dual mortar coupling of two contact surfaces of bilinear (q1) quadrilaterals in 3D (or of
+the q2 element's 9-node faces: below).
 
 A slave surface Gamma_s (displacement shape functions N_j) and a master surface Gamma_m
 (N^m_l), both 4-node faces, counter-clockwise seen from outside their own body (the
@@ -43,6 +44,13 @@ quadratic in p and the rule is exact from n = 3 on; on distorted quadrilaterals 
 inverse bilinear map is not polynomial and the error falls with n: sum_l M[j, l] - D_j
 is 1e-4, 1e-5, 1e-6, 2e-12, 2e-15 of max D for n = 3, 4, 5, 12, 16 with corners moved
 by up to 0.3 of a cell (tests/fem/test_mortar.py).
+
+The q2 element's faces (fem/mortar_q2.py) are 9-node faces: the geometry (planes,
+clipping, inverse maps, the area element) is that of their 4 corners, as above, and the
+shape functions N_j, N^m_l are the biquadratic ones of the 9 nodes; D_e and M_e by 4x4
+Gauss points (N_j N_k |J| of degree 5 per direction on a flat face), the triangle rule of
+5 x 5 points (Phi_j N^m_l of degree 8 on parallelograms: exact). The q1 faces' numbers
+are those of before, bitwise.
 
 On a slave face the master covers only in part, Phi_j is integrated over the covered
 part: its row sums differ from D_j there and may be negative (the dual functions are).

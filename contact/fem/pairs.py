@@ -45,6 +45,13 @@ then holds, and so does the multigrid's rediscretised first coarse operator (mul
 with Galerkin coarse operators, was the way before; it is the tests' reference now
 (runs/results/two-bodies.md: the times of both).
 
+The q2 element (fem/mortar_q2.py): the surfaces come as the refined mesh's quadrilaterals;
+each rank puts its own together into 9-node faces (the 4 of an element face are one rank's:
+the children of one cell) before they are gathered, and the mortar couples those (D_j the
+Gauss-Lobatto weights of contactset.py, 1/36, 4/36, 16/36 of a flat face's area). The
+faces must be straight-edged (edge and centre nodes at the corners' midpoints, as the
+mortar's bilinear geometry has them): PairError otherwise.
+
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
 mesh) are gathered on every rank, each rank integrates a share of the mortar matrices and
 every rank holds their sum, the same on every rank (mortar_matrices' comm) (and the
