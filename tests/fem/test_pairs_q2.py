@@ -210,13 +210,19 @@ def test_multigrid_and_coarse_start_q2(comm):
 @pytest.mark.parametrize("change, words", [
     (lambda s: s["bodies"]["base"].update(grading={"x": {"progression": 2.0}}),
      "q2 needs straight-edged faces"),
+    (lambda s: (s["bodies"]["punch"].update(lower_surface="0.02 * x * x"),
+                s["boundary"].update(interface={"type": "contact", "body": "base",
+                                                "plane": ["z", 0.5],
+                                                "master": {"body": "punch"}})),
+     "q2 needs straight-edged faces"),
     (lambda s: s["bodies"]["base"].update(lower_surface="0.01 * x"),
      None),
     (lambda s: s["mesh"].update(element="q2p1"), "several bodies has the q1 or q2 element"),
 ])
 def test_refused_q2(comm, change, words):
     """One line: a master face curved by its body's grading along it (its mid nodes off the
-    midpoints); q2p1 on several bodies. A lower_surface elsewhere (the base's bottom, not
+    midpoints) or by its lower_surface (the punch's bottom, the base's top the slave);
+    q2p1 on several bodies. A lower_surface elsewhere (the base's bottom, not
     the pair's) and a grading across the faces keep them straight: allowed."""
     sc = q2_blocks()
     change(sc)
