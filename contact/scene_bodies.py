@@ -23,9 +23,10 @@ without `master:` presses its body on the rigid foundation as in a one-body scen
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
 version: q1 or q2 (mesh.element or -element; auto is q1), slave faces a side of their box
 (normal to x, y or z; pairs may face different axes). With q2 a pair couples the
-elements' 9-node faces (biquadratic, their dual basis: fem/mortar_q2.py), whose edge and
-centre nodes must be at the midpoints of their corners (straight edges: a body graded
-along the pair's faces, or a lower_surface master, is refused in one line; use q1).
+elements' 9-node faces (biquadratic, isoparametric, their dual basis: fem/mortar_q2.py),
+whose edges must be straight seen along the pair's normal: graded bodies and a
+lower_surface master on a pair along z are; a lower_surface body's side faces in a pair
+along x or y are refused in one line (use q1).
 A contact part may have its own `friction:` (a number or an expression, as
 contact.friction) on its nodes.
 

@@ -45,12 +45,15 @@ inverse bilinear map is not polynomial and the error falls with n: sum_l M[j, l]
 is 1e-4, 1e-5, 1e-6, 2e-12, 2e-15 of max D for n = 3, 4, 5, 12, 16 with corners moved
 by up to 0.3 of a cell (tests/fem/test_mortar.py).
 
-The q2 element's faces (fem/mortar_q2.py) are 9-node faces: the geometry (planes,
-clipping, inverse maps, the area element) is that of their 4 corners, as above, and the
-shape functions N_j, N^m_l are the biquadratic ones of the 9 nodes; D_e and M_e by 4x4
-Gauss points (N_j N_k |J| of degree 5 per direction on a flat face), the triangle rule of
-5 x 5 points (Phi_j N^m_l of degree 8 on parallelograms: exact). The q1 faces' numbers
-are those of before, bitwise.
+The q2 element's faces (fem/mortar_q2.py) are 9-node faces: the planes and the clipping
+are those of their 4 corners, as above (exact where the edges are straight seen along n0);
+the reference points are those of the 9-node (isoparametric) maps of the projected nodes
+(Newton from the bilinear ones), the area element the slave's 9-node map's, the shape
+functions N_j, N^m_l the biquadratic ones; D_e and M_e by 4x4 Gauss points (N_j N_k |J|
+of degree 5 per direction on a flat face with bilinear geometry), the triangle rule of
+5 x 5 points (Phi_j N^m_l of degree 8 on parallelograms: exact), 8 x 8 where the edge and
+centre nodes are off the corners' midpoints (graded: the inverse maps are not
+polynomial). The q1 faces' numbers are those of before, bitwise.
 
 On a slave face the master covers only in part, Phi_j is integrated over the covered
 part: its row sums differ from D_j there and may be negative (the dual functions are).
@@ -61,7 +64,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from contact.fem.mortar_q2 import Q9, shape9
+from contact.fem.mortar_q2 import Q9, grad9, inverse_map9, midpoint_deviation, shape9
 
 #: the reference square's corners, counter-clockwise (contact/fem/element.py's face order)
 _QUAD = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -79,6 +82,9 @@ _W16 = np.outer(_w4, _w4).ravel()
 #: the triangle rule's default points per direction (triangle_rule): q1 faces (Phi_j N^m_l
 #: of degree 4 on parallelograms: exact from 3) and 9-node faces (degree 8: from 5)
 POINTS = {4: 4, 9: 5}
+#: ... and 9-node faces whose edge or centre nodes are off the corners' midpoints (graded,
+#: mapped: the inverse maps are not polynomial)
+POINTS_MAPPED = 8
 #: face pairs handled at once (bounds the temporaries: per pair up to 8 clip triangles
 #: of n x n points each)
 CHUNK = 2048
@@ -135,9 +141,9 @@ def dual_coefficients(X):
     bilinear face of the corners."""
     n = X.shape[1]
     N, dN = shape(_GP9 if n == 4 else _GP16)
-    if n == 9:
-        N = shape9(_GP16)
-    dx = np.einsum("gad,fai->fgdi", dN, X[:, :4])
+    if n == 9:                                  # the 9-node map (isoparametric)
+        N, dN = shape9(_GP16), grad9(_GP16)
+    dx = np.einsum("gad,fai->fgdi", dN, X)
     J = np.linalg.norm(np.cross(dx[:, :, 0], dx[:, :, 1]), axis=2) * (_W9 if n == 4 else
                                                                        _W16)   # (f, g)
     Me = np.einsum("ga,gb,fg->fab", N, N, J)
@@ -290,6 +296,7 @@ def _segments(Xs, As, planes, Xm, lam, wq):
     over it (module docstring, steps 1-5)."""
     x0, R, S = planes
     n = Xs.shape[1]
+    Xs9, Xm9 = Xs, Xm
     Xs, Xm = (Xs, Xm) if n == 4 else (Xs[:, :4], Xm[:, :4])
     Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])      # (p, 4, 2)
     area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
@@ -312,8 +319,11 @@ def _segments(Xs, As, planes, Xm, lam, wq):
     xi_m = _inverse_bilinear(Pm[pair], p)
     Ns, dNs = shape(xi_s)
     Nm, _ = shape(xi_m)
-    if n == 9:                                  # degree 2 on the bilinear faces
-        Ns, Nm = shape9(xi_s), shape9(xi_m)
+    if n == 9:                # the 9-node maps' inverses, from the corners' bilinear ones
+        S9, P9 = (np.einsum("pai,pki->pak", X - x0[:, None], R[:, :2]) for X in (Xs9, Xm9))
+        xi_s = inverse_map9(S9[pair], p, xi_s)
+        xi_m = inverse_map9(P9[pair], p, xi_m)
+        Ns, Nm, dNs, Xs = shape9(xi_s), shape9(xi_m), grad9(xi_s), Xs9
     dx = np.matmul(Xs[pair].transpose(0, 2, 1)[:, None], dNs)      # (t, g, 3, 2)
     c = np.cross(dx[..., 0], dx[..., 1])
     w = w * np.linalg.norm(c, axis=-1) / (c * R[pair, None, 2]).sum(axis=-1)
@@ -364,7 +374,12 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
         pairs = candidate_pairs(xs, fs, xm, fm, inflate)
     planes = _planes(xs[fs[:, :4]])
     A, De = dual_coefficients(xs[fs])
-    lam, wq = triangle_rule(POINTS[fs.shape[1]] if points is None else points)
+    if points is None:
+        points = POINTS[fs.shape[1]]
+        if fs.shape[1] == 9 and max(midpoint_deviation(xs[fs]),
+                                    midpoint_deviation(xm[fm])) > 1e-12:
+            points = POINTS_MAPPED
+    lam, wq = triangle_rule(points)
     rows, cols, vals = [], [], []
     overlap = np.zeros(ns)
     lo, hi = _share(pairs.shape[0], chunk, comm)

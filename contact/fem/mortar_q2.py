@@ -10,13 +10,17 @@ quadrilaterals, 4 per element face, each node with its role (0 corner, 1 edge mi
     |           |        reference points Q9 on [-1, 1]^2
     0 --- 4 --- 1
 
-The mortar takes a face's geometry from its 4 corners (a bilinear face with straight
-edges: the clipping and the inverse maps of mortar.py are those of q1) and the
-displacement's shape functions of degree 2 on it (`shape9`: the tensor products of the
-1D quadratic Lagrange functions). That is the q2 element's own geometry where its edge and
-centre nodes are at the bilinear map's midpoints (`midpoint_deviation`: a box body's
-faces); a body graded along the face or with a lower_surface there has curved q2 faces,
-which the pairs refuse (fem/pairs.py).
+The mortar (fem/mortar.py) clips the faces' corner quadrilaterals, projected on the slave
+face's plane, as for q1, and maps each integration point to a face's reference point by
+the 9-node (isoparametric, biquadratic) map of its projected nodes (`inverse_map9`:
+Newton from the corners' bilinear inverse), which is the q2 element's own face; the
+displacement's shape functions are of degree 2 (`shape9`: the tensor products of the 1D
+quadratic Lagrange functions), the slave's area element the 9-node map's. The clipping is
+exact where the faces' edges, seen along the normal, are straight: a box's faces, graded
+or not, and a lower_surface face seen along z (mesh/bodies.py moves nodes in z only);
+`edge_bends` measures it, the pairs refuse the rest (fem/pairs.py). Where the edge and
+centre nodes are at the corners' midpoints (`midpoint_deviation`: an ungraded box) the
+9-node map is the bilinear one.
 
 The dual basis exists for this face: D_e = diag(int N_j) > 0 (1/9, 4/9, 16/9 of a
 parallelogram's area / 4 at the corner, edge and centre nodes: the products of Simpson's
@@ -40,6 +44,50 @@ def shape9(xi):
     """Biquadratic N_a (..., 9) at reference points xi (..., 2), node order Q9."""
     Lx, Ly = _lagrange2(xi[..., 0]), _lagrange2(xi[..., 1])
     return Lx[..., _IDX[:, 0]] * Ly[..., _IDX[:, 1]]
+
+
+def grad9(xi):
+    """dN_a/dxi (..., 9, 2) of the biquadratic functions at xi (..., 2)."""
+    Lx, Ly = _lagrange2(xi[..., 0]), _lagrange2(xi[..., 1])
+    dLx, dLy = (np.stack([t - 0.5, -2.0 * t, t + 0.5], axis=-1) for t in (xi[..., 0],
+                                                                          xi[..., 1]))
+    return np.stack([dLx[..., _IDX[:, 0]] * Ly[..., _IDX[:, 1]],
+                     Lx[..., _IDX[:, 0]] * dLy[..., _IDX[:, 1]]], axis=-1)
+
+
+def inverse_map9(Q, p, start, iterations=30, tol=1e-14):
+    """Reference points xi (t, g, 2) of points p (t, g, 2) under the 2D biquadratic maps of
+    the 9-node faces Q (t, 9, 2): Newton from `start` (t, g, 2) (the corners' bilinear
+    inverse: exact where the edge and centre nodes are at its midpoints)."""
+    xi = start.copy()
+    for _ in range(iterations):
+        N, dN = shape9(xi), grad9(xi)
+        r = np.einsum("tga,tai->tgi", N, Q) - p
+        J = np.einsum("tgad,tai->tgid", dN, Q)                   # dx_i / dxi_d
+        det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+        d0 = (r[..., 0] * J[..., 1, 1] - r[..., 1] * J[..., 0, 1]) / det
+        d1 = (J[..., 0, 0] * r[..., 1] - J[..., 1, 0] * r[..., 0]) / det
+        xi[..., 0] -= d0
+        xi[..., 1] -= d1
+        if max(np.abs(d0).max(initial=0.0), np.abs(d1).max(initial=0.0)) < tol:
+            break
+    return xi
+
+
+def edge_bends(X, axis):
+    """How far the 9-node faces X (f, 9, 3), seen along e_axis, are from straight-edged
+    with their parametrisation monotone: the largest distance of an edge node from its
+    edge's chord (relative to the chord's length), and whether every edge node lies in
+    the middle half of its chord (then the edge's quadratic map is one-to-one)."""
+    if X.shape[0] == 0:
+        return 0.0, True
+    P = np.delete(X, axis, axis=2)
+    a, b, m = P[:, :4], np.roll(P[:, :4], -1, axis=1), P[:, 4:8]
+    e = b - a
+    L2 = (e * e).sum(axis=2)
+    t = ((m - a) * e).sum(axis=2) / L2
+    off = np.abs(e[..., 0] * (m - a)[..., 1] - e[..., 1] * (m - a)[..., 0]) / L2
+    return float(off.max()), bool(np.all((t > 0.25) & (t < 0.75)))
 
 
 def bilinear(xi):

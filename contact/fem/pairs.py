@@ -48,9 +48,10 @@ with Galerkin coarse operators, was the way before; it is the tests' reference n
 The q2 element (fem/mortar_q2.py): the surfaces come as the refined mesh's quadrilaterals;
 each rank puts its own together into 9-node faces (the 4 of an element face are one rank's:
 the children of one cell) before they are gathered, and the mortar couples those (D_j the
-Gauss-Lobatto weights of contactset.py, 1/36, 4/36, 16/36 of a flat face's area). The
-faces must be straight-edged (edge and centre nodes at the corners' midpoints, as the
-mortar's bilinear geometry has them): PairError otherwise.
+Gauss-Lobatto weights of contactset.py on a flat face, 1/36, 4/36, 16/36 of its area where
+it is a parallelogram). The faces' edges must be straight seen along the pair's normal
+(the mortar clips their corners' quadrilaterals; graded boxes and a lower_surface seen
+along z are), the edge nodes in their middle halves: PairError otherwise.
 
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
 mesh) are gathered on every rank, each rank integrates a share of the mortar matrices and
@@ -64,14 +65,14 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact.fem.mortar import mortar_matrices
-from contact.fem.mortar_q2 import midpoint_deviation, nine_node_faces
+from contact.fem.mortar_q2 import edge_bends, nine_node_faces
 
 #: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
 #: (a sliver of master over it: the dual basis's row there is ill-conditioned)
 MIN_COVER = 1e-3
-#: q2: the edge and centre nodes of the pair's 9-node faces are the bilinear map's midpoints
-#: to this fraction of a face's diameter (the mortar's faces are bilinear: fem/mortar_q2.py)
-MIDPOINT_TOL = 1e-8
+#: q2: the pair's 9-node faces, seen along its normal, have straight edges to this fraction
+#: of an edge's length (the mortar clips the corners' quadrilaterals: fem/mortar_q2.py)
+STRAIGHT_TOL = 1e-8
 
 
 def _gathered(comm, gidx, coords, faces, k=4):
@@ -192,12 +193,12 @@ class ContactPair:
         xs, fs, sid = _gathered(comm, gidx, coords, s.slave, k)
         xm, fm, mid = _gathered(comm, gidx, coords, s.master, k)
         if k == 9:
-            off = max(midpoint_deviation(xs[fs]), midpoint_deviation(xm[fm]))
-            if off > MIDPOINT_TOL:
-                raise PairError(f"contact pair {s.name!r}: q2 needs straight-edged faces (a "
-                                f"face's edge and centre nodes at its midpoints, off by "
-                                f"{off:.1e} of its size: a body graded along the face or "
-                                f"with a lower_surface there); use -element q1")
+            (o1, m1), (o2, m2) = (edge_bends(X, s.axis) for X in (xs[fs], xm[fm]))
+            if max(o1, o2) > STRAIGHT_TOL or not (m1 and m2):
+                raise PairError(f"contact pair {s.name!r}: q2 needs faces whose edges, seen "
+                                f"along the pair's normal, are straight (an edge node off "
+                                f"its edge by {max(o1, o2):.1e} of it) with the edge nodes "
+                                f"in their middle halves; use -element q1")
         mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)

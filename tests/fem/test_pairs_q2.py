@@ -12,8 +12,9 @@ fem/mortar_q2.py), checked against closed forms and against q1:
   the last one the patch test too;
 * a punch pushed into a wider base (a stress concentration at its edges): q1 and q2 on
   the same node meshes converge to the same force, q2 closer at equal size;
+* graded bodies (the 9-node maps not bilinear): the patch test too;
 * the multigrid (Z^-1 P on the node mesh's levels) and the coarse-to-fine start reach the
-  patch test's answer; the refusals (curved q2 faces, q2p1);
+  patch test's answer; the refusals (faces bent seen along the normal, q2p1);
 on 1 and 2 ranks (the same answer: the patch test's closed form, the force's digits)."""
 import copy
 
@@ -207,28 +208,60 @@ def test_multigrid_and_coarse_start_q2(comm):
     assert pr.iterations()["inner_total"] <= 2               # started from the answer
 
 
+def side_pair(element):
+    """A block [1, 2] x [0, 1]^2 shoved along -x onto a block [0, 1]^3 clamped at x = 0, a
+    pair along x (the shoved block's face x = 1 the slave) whose master's lower edge is
+    bent in y by the master's lower_surface 0.1 y^2."""
+    mat = {"young": 1.0, "poisson": 0.3}
+    return {"name": "side", "mesh": {"element": element},
+            "bodies": {"left": {"lower": [0, 0, 0], "upper": [1, 1, 1], "cells": [2, 2, 2],
+                                "material": dict(mat), "lower_surface": "0.1 * y * y"},
+                       "right": {"lower": [1, 0, 0], "upper": [2, 1, 1], "cells": [2, 3, 3],
+                                 "material": dict(mat)}},
+            "boundary": {"wall": {"type": "dirichlet", "body": "left", "plane": ["x", 0.0]},
+                         "shove": {"type": "dirichlet", "body": "right", "plane": ["x", 2.0],
+                                   "displacement": [-0.01, 0.0, 0.0]},
+                         "side": {"type": "contact", "body": "right", "plane": ["x", 1.0],
+                                  "master": {"body": "left"}}},
+            "solver": {"mode": "newton"}}
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_patch_q2_graded(comm, friction):
+    """Both bodies graded along the interface (differently: their q2 faces' edge nodes off
+    the corners' midpoints, the 9-node maps not bilinear) and the punch along z, pushed
+    down by 0.01 on its top (a traction's lumped q2 load is not exact on graded faces): the
+    patch test's exact answer (p = 0.01), to 1e-8."""
+    sc = q2_blocks(friction)
+    sc["bodies"]["base"]["grading"] = {"x": {"progression": 2.0}, "y": {"progression": 3.0}}
+    sc["bodies"]["punch"]["grading"] = {"x": {"progression": 0.5}, "y": {"progression": 2.0},
+                                        "z": {"progression": 2.0}}
+    sc["boundary"]["press"] = {"type": "dirichlet", "body": "punch", "plane": ["z", 1.0],
+                               "components": ["z"], "displacement": [0.0, 0.0, -0.01]}
+    check_patch(solve(scenes.validate(sc), comm))
+
+
 @pytest.mark.parametrize("change, words", [
-    (lambda s: s["bodies"]["base"].update(grading={"x": {"progression": 2.0}}),
-     "q2 needs straight-edged faces"),
+    (lambda s: s.update(side_pair("q2")), "q2 needs faces whose edges, seen along the "
+                                          "pair's normal, are straight"),
+    (lambda s: s["mesh"].update(element="q2p1"), "several bodies has the q1 or q2 element"),
     (lambda s: (s["bodies"]["punch"].update(lower_surface="0.02 * x * x"),
                 s["boundary"].update(interface={"type": "contact", "body": "base",
                                                 "plane": ["z", 0.5],
-                                                "master": {"body": "punch"}})),
-     "q2 needs straight-edged faces"),
-    (lambda s: s["bodies"]["base"].update(lower_surface="0.01 * x"),
-     None),
-    (lambda s: s["mesh"].update(element="q2p1"), "several bodies has the q1 or q2 element"),
+                                                "master": {"body": "punch"}})), None),
+    (lambda s: s["bodies"]["base"].update(lower_surface="0.01 * x"), None),
 ])
 def test_refused_q2(comm, change, words):
-    """One line: a master face curved by its body's grading along it (its mid nodes off the
-    midpoints) or by its lower_surface (the punch's bottom, the base's top the slave);
-    q2p1 on several bodies. A lower_surface elsewhere (the base's bottom, not
-    the pair's) and a grading across the faces keep them straight: allowed."""
+    """One line: a master whose edges are bent seen along the pair's normal (a pair along x,
+    the master's lower edge curved by its lower_surface; with q1 it runs); q2p1 on several
+    bodies. Allowed: a curved master face seen along z (a lower_surface, straight in x, y:
+    the punch's bottom on the base's top, the slave), a lower_surface off the pair."""
     sc = q2_blocks()
     change(sc)
     if words is None:
-        sc["bodies"]["punch"]["grading"] = {"z": {"progression": 2.0}}
         assert solve(scenes.validate(sc), comm).converged
         return
     with pytest.raises(SceneError, match=words):
         solve(scenes.validate(sc), comm)
+    if "bodies" in sc and "left" in sc["bodies"]:
+        assert solve(scenes.validate(side_pair("q1")), comm).converged
