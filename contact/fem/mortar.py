@@ -137,8 +137,8 @@ def nodal_normals(x, faces):
 
 def dual_coefficients(X):
     """(A, De) of faces X (f, n, 3), n = 4 or 9 nodes: the dual basis Phi_j = sum_k A[f, j,
-    k] N_k (f, n, n) and De[f, j] = int_f N_j ds (f, n), by 3x3 Gauss points (4: 4x4) on the
-    bilinear face of the corners."""
+    k] N_k (f, n, n) and De[f, j] = int_f N_j ds (f, n), by 3x3 Gauss points on the
+    bilinear face (9 nodes: 4x4 on the 9-node map's face)."""
     n = X.shape[1]
     N, dN = shape(_GP9 if n == 4 else _GP16)
     if n == 9:                                  # the 9-node map (isoparametric)
@@ -291,8 +291,8 @@ def triangle_rule(n):
 
 def _segments(Xs, As, planes, Xm, lam, wq):
     """Mortar integrals of the face pairs (slave Xs (p, n, 3) with dual coefficients As
-    (p, n, n) and planes (_planes), master Xm (p, n, 3); n = 4 or 9, the geometry the
-    corners'): per clip triangle, its pair (t,), the local M (t, n, n) and int N_j (t, n)
+    (p, n, n) and planes (_planes), master Xm (p, n, 3); n = 4 or 9: clipped as their
+    corners' quadrilaterals, mapped by all n nodes): per clip triangle, its pair (t,), the local M (t, n, n) and int N_j (t, n)
     over it (module docstring, steps 1-5)."""
     x0, R, S = planes
     n = Xs.shape[1]
@@ -354,7 +354,8 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
     about their body's outward normal (module docstring); or both of 9-node faces (nf, 9)
-    (the q2 element's, fem/mortar_q2.py: corners first, the geometry theirs).
+    (the q2 element's, fem/mortar_q2.py: corners first; clipped as their corners'
+    quadrilaterals, mapped by their 9 nodes).
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
     with `inflate`. points: the triangle rule's points per direction (triangle_rule; None:
