@@ -292,8 +292,8 @@ def triangle_rule(n):
 def _segments(Xs, As, planes, Xm, lam, wq):
     """Mortar integrals of the face pairs (slave Xs (p, n, 3) with dual coefficients As
     (p, n, n) and planes (_planes), master Xm (p, n, 3); n = 4 or 9: clipped as their
-    corners' quadrilaterals, mapped by all n nodes): per clip triangle, its pair (t,), the local M (t, n, n) and int N_j (t, n)
-    over it (module docstring, steps 1-5)."""
+    corners' quadrilaterals, mapped by all n nodes): per clip triangle, its pair (t,), the
+    local M (t, n, n) and int N_j (t, n) over it (module docstring, steps 1-5)."""
     x0, R, S = planes
     n = Xs.shape[1]
     Xs9, Xm9 = Xs, Xm

@@ -372,8 +372,9 @@ QUADRATIC = [lambda x: x[:, 0] ** 2, lambda x: x[:, 0] * x[:, 1],
 def test_dual_basis_9_nodes_is_biorthogonal(warp):
     """9-node faces: int_e Phi_j N_k = delta_jk int_e N_j by a 12 x 12 Gauss rule (the
     biquadratic N and the bilinear |J| written here) on a distorted face (flat: exact;
-    warped: the 4x4 rule's accuracy, measured 1.6e-5 of max int N_j); the lumped int N_j of a parallelogram are 1/36,
-    4/36, 16/36 of its area at corners, edges and centre (all > 0: the dual basis exists)."""
+    warped: the 4x4 rule's accuracy, measured 1.6e-5 of max int N_j); the lumped int N_j
+    of a parallelogram are 1/36, 4/36, 16/36 of its area at corners, edges and centre (all
+    > 0: the dual basis exists)."""
     X = np.array([[0.1, -0.2, 0.0], [1.3, 0.1, 0.0], [1.0, 0.9, warp], [-0.2, 1.2, 0.0]])
     X9 = np.vstack([X, bilinear_map(Q9[4:], X)[0]])
     A, De = dual_coefficients(X9[None])
