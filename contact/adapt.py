@@ -62,6 +62,9 @@ def axes(sc):
         if how == "auto" and not auto:
             raise ValueError("mesh.grading auto needs a box mesh or box bodies, not only "
                              "gmsh bodies")
+        if auto and mesh.get("element", "q1") != "q1":
+            raise ValueError(f"mesh.grading auto on bodies is for q1 (for now), not "
+                             f"{mesh['element']}")
     elif kind != "box":
         if how == "auto" or scene_grading.auto_axes(mesh):
             raise ValueError(f"mesh.grading auto needs a box mesh or bodies, not a "

@@ -22,9 +22,14 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1, slave faces a flat side of their body (normal to x, y or z; pairs may face
-different axes). A contact part may have its own `friction:` (a number or an expression,
-as contact.friction) on its nodes.
+version: q1 or q2 (mesh.element or -element; auto is q1), slave faces a flat side of their
+body (normal to x, y or z; pairs may face different axes). With q2 a pair couples the
+elements' 9-node faces (biquadratic, isoparametric, their dual basis: fem/mortar_q2.py),
+whose edges must be straight seen along the pair's normal: graded bodies and a
+lower_surface master on a pair along z are; a lower_surface body's side faces in a pair
+along x or y are refused in one line (use q1).
+A contact part may have its own `friction:` (a number or an expression, as
+contact.friction) on its nodes.
 
 A body may also have `grading:` (mesh.grading's syntax, on its box) and `lower_surface:
 "<f(x, y)>"` (an expression): its lower face at z = lower_z + f(x, y), the shift fading
@@ -54,6 +59,8 @@ import numpy as np
 from contact import expression, scene_grading
 
 BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface", "mesh")
+#: the elements of a scene with several bodies (auto: q1)
+BODY_ELEMENTS = ("auto", "q1", "q2")
 
 
 def expand(scene):
@@ -100,9 +107,10 @@ def expand(scene):
     mesh.update(type="bodies", bodies=bodies)
     mesh.setdefault("nd", 1)
     el = mesh.setdefault("element", "q1")
-    if el not in ("auto", "q1"):
-        raise SceneError(f"a scene with several bodies has the q1 element (for now), got {el!r}")
-    mesh["element"] = "q1"
+    if el not in BODY_ELEMENTS:
+        raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
+                         f"got {el!r}")
+    mesh["element"] = "q1" if el == "auto" else el
     scene["mesh"] = mesh
     first = next(iter(bodies.values()))["material"]
     if scene.setdefault("material", dict(first)) != first:

@@ -131,6 +131,18 @@ def test_two_bodies(friction):
         assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
 
 
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_two_bodies_q2(friction):
+    """test_two_bodies with the q2 element (the pair couples 9-node faces, each rank
+    putting its own together before the surfaces are gathered: fem/pairs.py)."""
+    sc = two_blocks(friction=friction, base_cells=3, punch_cells=2,
+                    base=((-0.1, -0.1), (1.1, 1.1)), push=(0.002, 0.002, -0.004))
+    sc["mesh"] = {"element": "q2"}
+    du, dp, par, ser = _compare(sc, EXACT)
+    assert par.element == "q2" and du < TOL and dp < TOL, (du, dp)
+    assert par.iterations()["inner_total"] == ser.iterations()["inner_total"]
+
+
 @pytest.mark.parametrize("case", ["sheared_F0.3", "patch_F0", "on_foundation"])
 def test_three_bodies(case):
     """Three blocks stacked, two pairs (fem/pairs.py: Z = I + both pairs' E): the top pushed

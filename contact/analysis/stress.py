@@ -142,8 +142,8 @@ def body_stress(problem, u=None):
     nc = conn.shape[0]
     s, vol = np.zeros((nc, 6)), np.zeros(nc)
     q = problem.quadratic
+    per = problem.disc.cell_lame()                  # several bodies: a material per cell
     if q is None:
-        per = problem.disc.cell_lame()              # several bodies: a material per cell
         for a in range(0, nc, fem.CHUNK):
             c = conn[a:a + fem.CHUNK]
             if per is not None:
@@ -157,6 +157,8 @@ def body_stress(problem, u=None):
             for a in range(0, cells.size, fem.CHUNK // 8):
                 f = cells[a:a + fem.CHUNK // 8]
                 X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
+                if per is not None:
+                    lam, mu = per[0][f], per[1][f, None, None]
                 s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
                                            None if theta is None else theta[f // 8, o])
     vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes

@@ -23,6 +23,7 @@ from contact.fem.pairs_scene import contact_pairs, foundation_beside_pairs, part
 from contact.mesh import bodies as mesh_bodies
 from contact.geometry import basis
 from contact.scene import AXES, SceneError, foundation_normal
+from contact.scene_bodies import BODY_ELEMENTS
 
 DEFAULT_RAMP = (0.0, 1.0)
 #: -element auto: q2p1 from this Poisson ratio on (outside -solver_mode faithful). At
@@ -41,11 +42,16 @@ def element_of(scene):
     q1 in the paper's faithful mode, else q2p1 where nu >= AUTO_LOCKFREE_NU, else q1. (q2's
     mesh hierarchy is built for its nodes: problem.py asks here first.)"""
     el = options.get("element", scene)
+    if el == "auto" and "bodies" in scene:
+        el = "q1"
     if el == "auto":
         faithful = options.solver_mode(scene) == "faithful"
         el = "q1" if faithful or scene["material"]["poisson"] < AUTO_LOCKFREE_NU else "q2p1"
     if el not in fem.ELEMENTS:
         raise SceneError(f"-element must be auto, {', '.join(fem.ELEMENTS)}, got {el!r}")
+    if "bodies" in scene and el not in BODY_ELEMENTS:     # (-element on the command line)
+        raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
+                         f"got {el!r}")
     return el
 
 
@@ -174,7 +180,9 @@ class Discretisation:
         """[(cells, young, poisson)] per body, or None (one body: the scene's material)."""
         if self.bodies is None:
             return None
-        return mesh_bodies.material_groups(self.bodies, self.body_of)
+        # q2: element p is the parent of the cells 8 p .. 8 p + 7 (hierarchy.QuadraticCells)
+        return mesh_bodies.material_groups(self.bodies, self.body_of if self.quadratic is
+                                           None else self.body_of[::8])
 
     def cell_lame(self):
         """(lambda, mu) per local cell (several bodies), or None (the scene's material)."""

@@ -1,4 +1,5 @@
-"""Dual mortar coupling of two contact surfaces of bilinear (q1) quadrilaterals in 3D.
+"""Dual mortar coupling of two contact surfaces of bilinear (q1) quadrilaterals in 3D (or of
+the q2 element's 9-node faces: below).
 
 A slave surface Gamma_s (displacement shape functions N_j) and a master surface Gamma_m
 (N^m_l), both 4-node faces, counter-clockwise seen from outside their own body (the
@@ -44,6 +45,16 @@ inverse bilinear map is not polynomial and the error falls with n: sum_l M[j, l]
 is 1e-4, 1e-5, 1e-6, 2e-12, 2e-15 of max D for n = 3, 4, 5, 12, 16 with corners moved
 by up to 0.3 of a cell (tests/fem/test_mortar.py).
 
+The q2 element's faces (fem/mortar_q2.py) are 9-node faces: the planes and the clipping
+are those of their 4 corners, as above (exact where the edges are straight seen along n0);
+the reference points are those of the 9-node (isoparametric) maps of the projected nodes
+(Newton from the bilinear ones), the area element the slave's 9-node map's, the shape
+functions N_j, N^m_l the biquadratic ones; D_e and M_e by 4x4 Gauss points (N_j N_k |J|
+of degree 5 per direction on a flat face with bilinear geometry), the triangle rule of
+5 x 5 points (Phi_j N^m_l of degree 8 on parallelograms: exact), 8 x 8 where the edge and
+centre nodes are off the corners' midpoints (graded: the inverse maps are not
+polynomial). The q1 faces' numbers are those of before, bitwise.
+
 On a slave face the master covers only in part, Phi_j is integrated over the covered
 part: its row sums differ from D_j there and may be negative (the dual functions are).
 Not here: the modification of the dual basis at the slave surface's boundary (Wohlmuth
@@ -53,6 +64,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from contact.fem.mortar_q2 import Q9, grad9, inverse_map9, midpoint_deviation, shape9
+
 #: the reference square's corners, counter-clockwise (contact/fem/element.py's face order)
 _QUAD = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 #: the bilinear map's monomials 1, xi, eta, xi eta at the corners (rows: the monomial)
@@ -61,6 +74,17 @@ _G = np.sqrt(0.6)
 #: 3x3 Gauss points and weights on the reference square (the slave faces' D_e, M_e)
 _GP9 = np.array([[a, b] for a in (-_G, 0.0, _G) for b in (-_G, 0.0, _G)])
 _W9 = np.prod(np.where(_GP9 == 0.0, 8.0 / 9.0, 5.0 / 9.0), axis=1)
+#: 4x4 Gauss points and weights (9-node faces' D_e, M_e: N_j N_k |J| of degree 5 per
+#: direction on a flat face, 7 on a warped one)
+_g4, _w4 = np.polynomial.legendre.leggauss(4)
+_GP16 = np.array([[a, b] for a in _g4 for b in _g4])
+_W16 = np.outer(_w4, _w4).ravel()
+#: the triangle rule's default points per direction (triangle_rule): q1 faces (Phi_j N^m_l
+#: of degree 4 on parallelograms: exact from 3) and 9-node faces (degree 8: from 5)
+POINTS = {4: 4, 9: 5}
+#: ... and 9-node faces whose edge or centre nodes are off the corners' midpoints (graded,
+#: mapped: the inverse maps are not polynomial)
+POINTS_MAPPED = 8
 #: face pairs handled at once (bounds the temporaries: per pair up to 8 clip triangles
 #: of n x n points each)
 CHUNK = 2048
@@ -91,7 +115,17 @@ def shape(xi):
 def nodal_normals(x, faces):
     """Unit normals at the nodes x (n, 3) of the faces (f, 4): at each node the mean of
     its faces' unit normals there (at a corner: the cross product of the face's two edges
-    from it, next x previous), normalised (Popp et al. 2010); zero at nodes of no face."""
+    from it, next x previous), normalised (Popp et al. 2010); zero at nodes of no face.
+    9-node faces (f, 9): the bilinear face's normal at each node's reference point."""
+    if faces.shape[1] == 9:
+        X, (_, dN) = x[faces[:, :4]], shape(Q9)
+        dx = np.einsum("qad,fai->fqdi", dN, X)
+        c = np.cross(dx[:, :, 0], dx[:, :, 1])
+        c /= np.linalg.norm(c, axis=2, keepdims=True)
+        n = np.zeros_like(x, dtype=float)
+        np.add.at(n, faces.ravel(), c.reshape(-1, 3))
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        return n / np.where(norm > 0.0, norm, 1.0)
     X = x[faces]
     c = np.cross(np.roll(X, -1, axis=1) - X, np.roll(X, 1, axis=1) - X)
     c /= np.linalg.norm(c, axis=2, keepdims=True)
@@ -102,22 +136,27 @@ def nodal_normals(x, faces):
 
 
 def dual_coefficients(X):
-    """(A, De) of faces X (f, 4, 3): the dual basis Phi_j = sum_k A[f, j, k] N_k (f, 4, 4)
-    and De[f, j] = int_f N_j ds (f, 4), by 3x3 Gauss points on the bilinear face."""
-    N, dN = shape(_GP9)
+    """(A, De) of faces X (f, n, 3), n = 4 or 9 nodes: the dual basis Phi_j = sum_k A[f, j,
+    k] N_k (f, n, n) and De[f, j] = int_f N_j ds (f, n), by 3x3 Gauss points on the
+    bilinear face (9 nodes: 4x4 on the 9-node map's face)."""
+    n = X.shape[1]
+    N, dN = shape(_GP9 if n == 4 else _GP16)
+    if n == 9:                                  # the 9-node map (isoparametric)
+        N, dN = shape9(_GP16), grad9(_GP16)
     dx = np.einsum("gad,fai->fgdi", dN, X)
-    J = np.linalg.norm(np.cross(dx[:, :, 0], dx[:, :, 1]), axis=2) * _W9    # (f, g)
+    J = np.linalg.norm(np.cross(dx[:, :, 0], dx[:, :, 1]), axis=2) * (_W9 if n == 4 else
+                                                                       _W16)   # (f, g)
     Me = np.einsum("ga,gb,fg->fab", N, N, J)
     De = Me.sum(axis=2)                                           # sum_k N_k = 1
     # A = De Me^-1, so A^T = Me^-1 De (Me symmetric)
-    A = np.linalg.solve(Me, De[:, :, None] * np.eye(4)).transpose(0, 2, 1)
+    A = np.linalg.solve(Me, De[:, :, None] * np.eye(n)).transpose(0, 2, 1)
     return A, De
 
 
 def face_boxes(x, faces, inflate):
     """Bounding boxes (lo, hi) (f, 3) of the faces, each grown on every side by inflate
     times its largest extent (the gap an overlap may span)."""
-    X = x[faces]
+    X = x[faces[:, :4]]
     lo, hi = X.min(axis=1), X.max(axis=1)
     pad = inflate * (hi - lo).max(axis=1, keepdims=True)
     return lo - pad, hi + pad
@@ -251,10 +290,14 @@ def triangle_rule(n):
 
 
 def _segments(Xs, As, planes, Xm, lam, wq):
-    """Mortar integrals of the face pairs (slave Xs (p, 4, 3) with dual coefficients As
-    (p, 4, 4) and planes (_planes), master Xm (p, 4, 3)): per clip triangle, its pair (t,),
-    the local M (t, 4, 4) and int N_j (t, 4) over it (module docstring, steps 1-5)."""
+    """Mortar integrals of the face pairs (slave Xs (p, n, 3) with dual coefficients As
+    (p, n, n) and planes (_planes), master Xm (p, n, 3); n = 4 or 9: clipped as their
+    corners' quadrilaterals, mapped by all n nodes): per clip triangle, its pair (t,), the
+    local M (t, n, n) and int N_j (t, n) over it (module docstring, steps 1-5)."""
     x0, R, S = planes
+    n = Xs.shape[1]
+    Xs9, Xm9 = Xs, Xm
+    Xs, Xm = (Xs, Xm) if n == 4 else (Xs[:, :4], Xm[:, :4])
     Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])      # (p, 4, 2)
     area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
     poly, k = _clip(S, Pm[:, ::-1])
@@ -276,6 +319,11 @@ def _segments(Xs, As, planes, Xm, lam, wq):
     xi_m = _inverse_bilinear(Pm[pair], p)
     Ns, dNs = shape(xi_s)
     Nm, _ = shape(xi_m)
+    if n == 9:                # the 9-node maps' inverses, from the corners' bilinear ones
+        S9, P9 = (np.einsum("pai,pki->pak", X - x0[:, None], R[:, :2]) for X in (Xs9, Xm9))
+        xi_s = inverse_map9(S9[pair], p, xi_s)
+        xi_m = inverse_map9(P9[pair], p, xi_m)
+        Ns, Nm, dNs, Xs = shape9(xi_s), shape9(xi_m), grad9(xi_s), Xs9
     dx = np.matmul(Xs[pair].transpose(0, 2, 1)[:, None], dNs)      # (t, g, 3, 2)
     c = np.cross(dx[..., 0], dx[..., 1])
     w = w * np.linalg.norm(c, axis=-1) / (c * R[pair, None, 2]).sum(axis=-1)
@@ -301,14 +349,17 @@ def _reduce(code, vals):
     return code, np.bincount(inverse.ravel(), vals, minlength=code.size)
 
 
-def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25, comm=None,
+def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=None,
                     chunk=CHUNK):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
-    about their body's outward normal (module docstring).
+    about their body's outward normal (module docstring); or both of 9-node faces (nf, 9)
+    (the q2 element's, fem/mortar_q2.py: corners first; clipped as their corners'
+    quadrilaterals, mapped by their 9 nodes).
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
-    with `inflate`. points: the triangle rule's points per direction (triangle_rule).
+    with `inflate`. points: the triangle rule's points per direction (triangle_rule; None:
+    POINTS by the faces' nodes).
     comm: an mpi4py communicator whose ranks all pass the same surfaces: each rank
     integrates its share of the pairs' chunks (`chunk` pairs each, _share), the shares
     are summed in rank order on every rank (allgather), so every rank returns the same
@@ -317,10 +368,18 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=4, inflate=0.25, comm=Non
     xs, xm = np.asarray(xs, dtype=float), np.asarray(xm, dtype=float)
     fs, fm = np.asarray(fs, dtype=np.int64), np.asarray(fm, dtype=np.int64)
     ns, nm = xs.shape[0], xm.shape[0]
+    if fs.shape[1] != fm.shape[1] or fs.shape[1] not in POINTS:
+        raise ValueError(f"the slave and master faces must both have 4 or 9 nodes, got "
+                         f"{fs.shape[1]} and {fm.shape[1]}")
     if pairs is None:
         pairs = candidate_pairs(xs, fs, xm, fm, inflate)
-    planes = _planes(xs[fs])
+    planes = _planes(xs[fs[:, :4]])
     A, De = dual_coefficients(xs[fs])
+    if points is None:
+        points = POINTS[fs.shape[1]]
+        if fs.shape[1] == 9 and max(midpoint_deviation(xs[fs]),
+                                    midpoint_deviation(xm[fm])) > 1e-12:
+            points = POINTS_MAPPED
     lam, wq = triangle_rule(points)
     rows, cols, vals = [], [], []
     overlap = np.zeros(ns)

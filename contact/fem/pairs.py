@@ -45,6 +45,14 @@ then holds, and so does the multigrid's rediscretised first coarse operator (mul
 with Galerkin coarse operators, was the way before; it is the tests' reference now
 (runs/results/two-bodies.md: the times of both).
 
+The q2 element (fem/mortar_q2.py): the surfaces come as the refined mesh's quadrilaterals;
+each rank puts its own together into 9-node faces (the 4 of an element face are one rank's:
+the children of one cell) before they are gathered, and the mortar couples those (D_j the
+Gauss-Lobatto weights of contactset.py on a flat face, 1/36, 4/36, 16/36 of its area where
+it is a parallelogram). The faces' edges must be straight seen along the pair's normal
+(the mortar clips their corners' quadrilaterals; graded boxes and a lower_surface seen
+along z are), the edge nodes in their middle halves: PairError otherwise.
+
 Set-up only: the two surfaces (global vertex numbers and coordinates, small against the
 mesh) are gathered on every rank, each rank integrates a share of the mortar matrices and
 every rank holds their sum, the same on every rank (mortar_matrices' comm) (and the
@@ -57,21 +65,42 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact.fem.mortar import mortar_matrices
+from contact.fem.mortar_q2 import edge_bends, nine_node_faces
 
 #: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
 #: (a sliver of master over it: the dual basis's row there is ill-conditioned)
 MIN_COVER = 1e-3
+#: q2: the pair's 9-node faces, seen along its normal, have straight edges to this fraction
+#: of an edge's length (the mortar clips the corners' quadrilaterals: fem/mortar_q2.py)
+STRAIGHT_TOL = 1e-8
 
 
-def _gathered(comm, gidx, coords, faces):
-    """(x (n, 3), faces (nf, 4) into x, global vertex numbers (n,)) of a surface whose
-    local faces are `faces`, on every rank."""
+def _gathered(comm, gidx, coords, faces, k=4):
+    """(x (n, 3), faces (nf, k) into x, global vertex numbers (n,)) of a surface whose
+    local faces are `faces` (k nodes each: 4, or the q2 element's 9), on every rank."""
     mine = (gidx[faces], coords[faces])
     parts = comm.tompi4py().allgather(mine)
-    g = np.concatenate([p[0].reshape(-1, 4) for p in parts]).astype(np.int64)
+    g = np.concatenate([p[0].reshape(-1, k) for p in parts]).astype(np.int64)
     X = np.concatenate([p[1].reshape(-1, 3) for p in parts])
     ids, first, inv = np.unique(g.ravel(), return_index=True, return_inverse=True)
-    return X[first], inv.reshape(-1, 4), ids
+    return X[first], inv.reshape(-1, k), ids
+
+
+def _nine_node(comm, surfaces, roles):
+    """The q2 element's surfaces: each one's slave and master as 9-node faces (fem/mortar_q2.py,
+    from the refined quadrilaterals and the vertices' roles); PairError on every rank where
+    one rank's faces are not whole element faces."""
+    out, err = [], None
+    for s in surfaces:
+        try:
+            out.append(s._replace(slave=nine_node_faces(s.slave, roles),
+                                  master=nine_node_faces(s.master, roles)))
+        except ValueError as e:
+            err = err or f"contact pair {s.name!r}: {e}"
+    errs = [e for e in comm.tompi4py().allgather(err) if e]
+    if errs:
+        raise PairError(errs[0])
+    return out
 
 
 def _held(comm, clamped, nodes):
@@ -113,11 +142,15 @@ class ContactPair:
     """The change of basis Z = I + E of one or several contact pairs, E the sum of each
     pair's (module docstring).
 
-    dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows."""
+    dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows;
+    roles: the q2 element's vertex roles (hierarchy.QuadraticCells; the surfaces' faces are
+    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None."""
 
-    def __init__(self, dm, coords, surfaces, clamped):
+    def __init__(self, dm, coords, surfaces, clamped, roles=None):
         comm = dm.getComm()
         self.comm = comm
+        if roles is not None:
+            surfaces = _nine_node(comm, surfaces, roles)
         g = dm.createGlobalVec()
         self._rows, self.n_nodes = g.getOwnershipRange(), g.getSize() // 3
         g.destroy()
@@ -156,8 +189,16 @@ class ContactPair:
         face nodes `sid`, which the master covers `ok`, their gaps, E's entries (srow,
         mcol, v: global vertex numbers, P_jl), E's rows and columns, the master face
         nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
-        xs, fs, sid = _gathered(comm, gidx, coords, s.slave)
-        xm, fm, mid = _gathered(comm, gidx, coords, s.master)
+        k = s.slave.shape[1]
+        xs, fs, sid = _gathered(comm, gidx, coords, s.slave, k)
+        xm, fm, mid = _gathered(comm, gidx, coords, s.master, k)
+        if k == 9:
+            (o1, m1), (o2, m2) = (edge_bends(X, s.axis) for X in (xs[fs], xm[fm]))
+            if max(o1, o2) > STRAIGHT_TOL or not (m1 and m2):
+                raise PairError(f"contact pair {s.name!r}: q2 needs faces whose edges, seen "
+                                f"along the pair's normal, are straight (an edge node off "
+                                f"its edge by {max(o1, o2):.1e} of it) with the edge nodes "
+                                f"in their middle halves; use -element q1")
         mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)

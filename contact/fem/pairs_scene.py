@@ -69,7 +69,7 @@ def contact_pairs(disc, pairs):
                                  f"face on the plane {m['plane'][0]} = {m['plane'][1]}")
         surfaces.append(Surface(name, disc.parts[name], master, axis, sign))
     try:
-        pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped)
+        pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped, disc.roles)
     except PairError as e:
         raise SceneError(str(e)) from None
     for (name, part), p in zip(pairs, pair.pairs):

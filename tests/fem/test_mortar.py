@@ -1,4 +1,5 @@
-"""The dual mortar coupling of two q1 contact surfaces (contact/fem/mortar.py).
+"""The dual mortar coupling of two q1 contact surfaces (contact/fem/mortar.py), and of
+two surfaces of 9-node faces (the q2 element's: fem/mortar_q2.py, at the end).
 
 Expected values are closed forms or computed here independently (tensor Gauss rules of
 high order on the reference square, exact trapezoid sums of piecewise linear functions,
@@ -308,3 +309,254 @@ def test_search_equals_all_pairs():
     assert np.array_equal(fast.rows, slow.rows) and np.array_equal(fast.cols, slow.cols)
     assert np.abs(fast.values - slow.values).max() < 1e-16
     assert fast.covered.all()
+
+
+# ---- 9-node (biquadratic) faces: the q2 element's (fem/mortar_q2.py) ----
+#: the 9 nodes' reference points, written here: corners counter-clockwise, the edges'
+#: midpoints (edge k from corner k to k + 1), the centre
+Q9 = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0], [0, 0]],
+              dtype=float)
+
+
+def lagrange9(p):
+    """Biquadratic Lagrange functions (g, 9) at points p (g, 2), node order Q9."""
+    def L(t, a):                                 # the 1D quadratic of node a in -1, 0, 1
+        return np.prod([(t - b) / (a - b) for b in (-1.0, 0.0, 1.0) if b != a], axis=0)
+    return np.stack([L(p[:, 0], a) * L(p[:, 1], b) for a, b in Q9], axis=1)
+
+
+def bilinear_map(p, X):
+    """x (g, 3) and dx/dxi, dx/deta (g, 2, 3) of the bilinear map of corners X (4, 3)."""
+    N = np.prod(1.0 + p[:, None, :] * CORNERS, axis=2) / 4.0
+    dN = np.stack([CORNERS[:, 0] * (1.0 + p[:, None, 1] * CORNERS[:, 1]),
+                   CORNERS[:, 1] * (1.0 + p[:, None, 0] * CORNERS[:, 0])], axis=2) / 4.0
+    return N @ X, np.einsum("gad,ai->gdi", dN, X)
+
+
+def grid9(nx, ny, lower=(0.0, 0.0), upper=(1.0, 1.0), up=True, distort=0.0, seed=0):
+    """The 9-node faces (f, 9) of grid()'s nx x ny quadrilaterals on z = 0, the edge and
+    centre nodes at the bilinear map's midpoints (the corners' means)."""
+    x, f = grid(nx, ny, lower, upper, True, distort, seed)
+    i = np.arange((2 * nx + 1) * (2 * ny + 1)).reshape(2 * nx + 1, 2 * ny + 1)
+    X = np.zeros((i.size, 3))
+    a, b = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    a, b = 2 * a.ravel(), 2 * b.ravel()
+    faces = np.stack([i[a, b], i[a + 2, b], i[a + 2, b + 2], i[a, b + 2], i[a + 1, b],
+                      i[a + 2, b + 1], i[a + 1, b + 2], i[a, b + 1], i[a + 1, b + 1]], axis=1)
+    c = x[f]                                                  # (f, 4, 3) the corners
+    X[faces[:, :4]] = c
+    X[faces[:, 4:8]] = (c + np.roll(c, -1, axis=1)) / 2.0
+    X[faces[:, 8]] = c.mean(axis=1)
+    if not up:                                 # clockwise: corners 0 3 2 1, edges 7 6 5 4
+        faces = faces[:, [0, 3, 2, 1, 7, 6, 5, 4, 8]]
+    return X, faces
+
+
+def graded9(nx, ny, lower, upper, gx, gy, up=True, z=lambda x, y: 0.0 * x):
+    """9-node faces of an nx x ny grid whose (2 nx + 1) x (2 ny + 1) nodes are graded along
+    each axis (x = lower + (upper - lower) t^gx on the uniform t of the node lattice: the
+    edge nodes off the corners' midpoints, the edges straight) on the surface z(x, y)."""
+    tx, ty = (np.linspace(0.0, 1.0, 2 * k + 1) ** g for k, g in ((nx, gx), (ny, gy)))
+    x, y = np.meshgrid(lower[0] + (upper[0] - lower[0]) * tx,
+                       lower[1] + (upper[1] - lower[1]) * ty, indexing="ij")
+    X = np.stack([x.ravel(), y.ravel(), z(x, y).ravel()], axis=1)
+    _, faces = grid9(nx, ny, up=up)
+    return X, faces
+
+
+QUADRATIC = [lambda x: x[:, 0] ** 2, lambda x: x[:, 0] * x[:, 1],
+             lambda x: 1.0 + x[:, 0] - 2.0 * x[:, 1] + 3.0 * x[:, 1] ** 2]
+
+
+@pytest.mark.parametrize("warp", [0.0, 0.3])
+def test_dual_basis_9_nodes_is_biorthogonal(warp):
+    """9-node faces: int_e Phi_j N_k = delta_jk int_e N_j by a 12 x 12 Gauss rule (the
+    biquadratic N and the bilinear |J| written here) on a distorted face (flat: exact;
+    warped: the 4x4 rule's accuracy, measured 1.6e-5 of max int N_j); the lumped int N_j
+    of a parallelogram are 1/36, 4/36, 16/36 of its area at corners, edges and centre (all
+    > 0: the dual basis exists)."""
+    X = np.array([[0.1, -0.2, 0.0], [1.3, 0.1, 0.0], [1.0, 0.9, warp], [-0.2, 1.2, 0.0]])
+    X9 = np.vstack([X, bilinear_map(Q9[4:], X)[0]])
+    A, De = dual_coefficients(X9[None])
+    p, w = gauss_square(12)
+    N = lagrange9(p)
+    _, dx = bilinear_map(p, X)
+    J = np.linalg.norm(np.cross(dx[:, 0], dx[:, 1]), axis=1) * w
+    lumped = N.T @ J
+    tol = 1e-14 if warp == 0.0 else 1e-4
+    assert np.abs(De[0] - lumped).max() < tol * lumped.max()
+    phi = N @ A[0].T
+    assert np.abs(phi.T @ (N * J[:, None]) - np.diag(lumped)).max() < tol * lumped.max()
+    P = np.array([[0.0, 0.0, 0.0], [2.0, 0.5, 0.0], [2.5, 1.5, 0.0], [0.5, 1.0, 0.0]])
+    _, Dp = dual_coefficients(np.vstack([P, bilinear_map(Q9[4:], P)[0]])[None])
+    area = np.linalg.norm(np.cross(P[1] - P[0], P[3] - P[0]))
+    share = np.array([1, 1, 1, 1, 4, 4, 4, 4, 16]) / 36.0
+    assert np.abs(Dp[0] - share * area).max() < 1e-14 * area
+
+
+def identities9(xs, fs, xm, fm, **kw):
+    """identities() for 9-node faces, the reproduction of quadratic functions too (the
+    master and slave spaces hold them on rectangles)."""
+    mo = mortar_matrices(xs, fs, xm, fm, **kw)
+    M = dense(mo, xm.shape[0])
+    scale = mo.D.max()
+    rows = np.abs(M.sum(axis=1) - mo.D).max() / scale
+    quad = max(np.abs(M @ f(xm) - mo.D * f(xs)).max() / scale for f in LINEAR + QUADRATIC)
+    return mo, M, rows, quad
+
+
+@pytest.mark.parametrize("master", MASTERS)
+def test_non_matching_flat_9_node_faces(master):
+    """3 x 3 slave faces against 4 x 4 master faces (aligned or shifted, covering): D the
+    lumped 1/36, 4/36, 16/36 shares (summing to the area), the row sums D_j and the
+    reproduction of quadratics sum_l M[j, l] f(x_l) = D_j f(x_j) (int Phi_j N_k = delta_jk
+    D_j and f in both spaces), to rounding."""
+    xs, fs = grid9(3, 3, up=False)
+    xm, fm = grid9(4, 4, up=True, **MASTERS[master])
+    mo, M, rows, quad = identities9(xs, fs, xm, fm)
+    assert abs(mo.D.sum() - 1.0) < 1e-14
+    h2 = (1.0 / 3.0) ** 2
+    corner = np.isin(np.arange(xs.shape[0]), fs[:, :4])
+    assert np.abs(mo.D[fs[:, 8]] - 16.0 / 36.0 * h2).max() < 1e-15
+    assert np.all(mo.D[corner] <= 4.0 / 36.0 * h2 + 1e-15)
+    assert rows < 1e-13 and quad < 1e-13
+    assert np.abs(mo.overlap - mo.D).max() < 1e-14 and mo.covered.all()
+    assert np.abs(mo.normals - [0.0, 0.0, -1.0]).max() < 1e-15
+
+
+N_BRUTE = 48
+
+
+def test_distorted_9_node_faces():
+    """Distorted 9-node faces (4 x 4 on 5 x 5, corners moved by up to 0.3 of a cell, the
+    mid nodes at the bilinear map's midpoints): the inverse maps are not polynomial, the
+    triangle rule not exact; the errors of the row sums and of the reproduction of
+    quadratics (x^2, x y on the bilinear face are biquadratic in the reference
+    coordinates: in the space) fall with the rule's points n: measured 2e-4, 3e-6, 2e-8
+    (n = 5, the default), 7e-11, 9e-15 (8) for n = 3, 4, 5, 6, 8."""
+    xs, fs = grid9(4, 4, up=False, distort=0.3, seed=1)
+    xm, fm = grid9(5, 5, (-0.1, -0.1), (1.1, 1.1), up=True, distort=0.3, seed=2)
+    mo, M5, rows5, quad5 = identities9(xs, fs, xm, fm)
+    assert abs(mo.D.sum() - 1.0) < 1e-14
+    assert 1e-10 < max(rows5, quad5) < 1e-7                  # not exact, but close
+    _, M10, rows10, quad10 = identities9(xs, fs, xm, fm, points=10)
+    assert rows10 < 1e-13 and quad10 < 1e-13
+    assert np.abs(M5 - M10).max() < 1e-6 * mo.D.max()         # measured 2.3e-7
+
+
+def test_graded_9_node_faces():
+    """9-node faces graded along each axis (the q2 element's faces on a graded box: its
+    edge nodes where the grading puts them, not at the corners' midpoints), slave and master
+    graded differently: D_j the isoparametric int N_j (12 x 12 Gauss, the 9-node map's |J|
+    written here), the row sums D_j and the reproduction of linear functions (in both
+    spaces: x(xi) is the 9-node map) to the triangle rule's accuracy (the inverse maps are
+    not polynomial): measured 5e-6, 3e-9, 4e-13, 2e-15 of max D for 5, 8 (the default on
+    mapped faces), 12, 16 points; a master curved in z (a lower_surface) has the M of its
+    flat projection (the slave's plane's normal is z)."""
+    xs, fs = graded9(3, 3, (0.0, 0.0), (1.0, 1.0), 1.3, 0.85, up=False)
+    xm, fm = graded9(4, 4, (-0.1, -0.13), (1.1, 1.17), 0.9, 1.2)
+    mo = mortar_matrices(xs, fs, xm, fm)
+    M = dense(mo, xm.shape[0])
+    scale = mo.D.max()
+    assert abs(mo.D.sum() - 1.0) < 1e-13
+    rows = np.abs(M.sum(axis=1) - mo.D).max() / scale
+    lin = max(np.abs(M @ f(xm) - mo.D * f(xs)).max() for f in LINEAR) / scale
+    assert 1e-11 < max(rows, lin) < 1e-8
+    M16 = dense(mortar_matrices(xs, fs, xm, fm, points=16), xm.shape[0])
+    assert np.abs(M16.sum(axis=1) - mo.D).max() < 1e-13 * scale
+    assert max(np.abs(M16 @ f(xm) - mo.D * f(xs)).max() for f in LINEAR) < 1e-13 * scale
+    p, w = gauss_square(12)
+    N = lagrange9(p)
+    h = 1e-5                      # central differences: exact for the quadratics but rounding
+    dN = np.stack([(lagrange9(p + [h, 0.0]) - lagrange9(p - [h, 0.0])) / (2 * h),
+                   (lagrange9(p + [0.0, h]) - lagrange9(p - [0.0, h])) / (2 * h)], axis=2)
+    D = np.zeros(xs.shape[0])
+    for f in fs:
+        dx = np.einsum("gad,ai->gdi", dN, xs[f])
+        np.add.at(D, f, N.T @ (np.linalg.norm(np.cross(dx[:, 0], dx[:, 1]), axis=1) * w))
+    assert np.abs(D - mo.D).max() < 1e-9 * scale
+    xc, _ = graded9(4, 4, (-0.1, -0.13), (1.1, 1.17), 0.9, 1.2,
+                    z=lambda x, y: -0.05 * (x * x + y * y))
+    curved = mortar_matrices(xs, fs, xc, fm)
+    assert np.abs(dense(curved, xm.shape[0]) - M).max() < 1e-14 * scale
+
+
+def test_edge_bends():
+    """edge_bends (the pairs' check of q2 faces): 0 and monotone on graded straight edges,
+    the distance of a bent edge node, and an edge node outside the middle half."""
+    from contact.fem.mortar_q2 import edge_bends
+    X, f = graded9(2, 2, (0.0, 0.0), (1.0, 1.0), 1.6, 0.7, z=lambda x, y: x * y)
+    off, monotone = edge_bends(X[f], 2)
+    assert off < 1e-15 and monotone
+    X[f[0, 4], 1] += 0.01                       # the first face's first edge, along x
+    off, monotone = edge_bends(X[f], 2)
+    assert abs(off - 0.01 / (X[f[0, 1], 0] - X[f[0, 0], 0])) < 1e-12 and monotone
+    X, f = graded9(2, 2, (0.0, 0.0), (1.0, 1.0), 4.0, 1.0)
+    assert not edge_bends(X[f], 2)[1]
+
+
+def test_9_node_faces_against_brute_force():
+    """M of a distorted slave (3 x 3) on a shifted non-matching master (4 x 4), against a
+    brute-force integral written here: each slave face's reference square cut into 48 x 48
+    cells of 2 x 2 Gauss points, each point's master face and reference point found by
+    searching the master faces near it (Newton on its bilinear map), Phi_j (the dual basis
+    from M_e, D_e by 12 x 12 Gauss) times N^m_l; the master's edges cut the cells (the
+    integrand jumps there): max |B - M| / max D measured 3e-4, 5e-5, 7e-6 for 24, 48, 96
+    cells a side, so 2e-4 at 48; the row sums D_j to rounding."""
+    xs, fs = grid9(3, 3, up=False, distort=0.25, seed=3)
+    xm, fm = grid9(4, 4, up=True, **MASTERS["shifted"])
+    mo = mortar_matrices(xs, fs, xm, fm)
+    M = dense(mo, xm.shape[0])
+    g, w = gauss_square(2)
+    n = N_BRUTE
+    c = (np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), -1).reshape(-1, 1, 2)
+         + (g[None] + 1.0) / 2.0) * (2.0 / n) - 1.0                   # (cells, 4, 2)
+    p, wp = c.reshape(-1, 2), np.tile(w, n * n) / n ** 2
+    q, wq = gauss_square(12)
+    B = np.zeros_like(M)
+    for f in fs:
+        Xc = xs[f[:4]]
+        _, dq = bilinear_map(q, Xc)
+        Jq = np.linalg.norm(np.cross(dq[:, 0], dq[:, 1]), axis=1) * wq
+        Nq = lagrange9(q)
+        Me, De = (Nq * Jq[:, None]).T @ Nq, Nq.T @ Jq
+        A = De[:, None] * np.linalg.inv(Me)
+        x, dx = bilinear_map(p, Xc)
+        J = np.linalg.norm(np.cross(dx[:, 0], dx[:, 1]), axis=1) * wp
+        phi = lagrange9(p) @ A.T                                     # (g, 9)
+        for m in fm:                                # every master face near this one
+            Xm = xm[m[:4]]
+            if np.any(Xm[:, :2].min(axis=0) > Xc[:, :2].max(axis=0)) or \
+                    np.any(Xm[:, :2].max(axis=0) < Xc[:, :2].min(axis=0)):
+                continue
+            s = np.zeros((x.shape[0], 2))
+            for _ in range(30):                                      # Newton, in the plane
+                y, dy = bilinear_map(s, Xm)
+                r = y[:, :2] - x[:, :2]
+                a, b, c, d = (dy[:, i, j] for i, j in ((0, 0), (1, 0), (0, 1), (1, 1)))
+                det = a * d - b * c
+                s -= np.stack([d * r[:, 0] - b * r[:, 1], a * r[:, 1] - c * r[:, 0]], 1) / \
+                    det[:, None]
+            inside = np.all(np.abs(s) <= 1.0, axis=1)
+            B[np.ix_(f, m)] += (phi[inside] * J[inside, None]).T @ lagrange9(s[inside])
+    assert np.abs(B - M).max() < 2e-4 * mo.D.max()
+    assert np.abs(B.sum(axis=1) - mo.D).max() < 1e-12 * mo.D.max()
+
+
+def test_9_node_faces_need_the_dual_basis_and_the_mid_nodes(monkeypatch):
+    """The checks above see a wrong coupling: the standard basis in place of the dual one
+    (A = I), or the mid nodes dropped from M (the bilinear functions of the corners),
+    break the reproduction of quadratics."""
+    from contact.fem import mortar, mortar_q2
+    xs, fs = grid9(3, 3, up=False)
+    xm, fm = grid9(4, 4, up=True, **MASTERS["shifted"])
+    real = mortar.dual_coefficients
+    monkeypatch.setattr(mortar, "dual_coefficients", lambda X: (
+        np.broadcast_to(np.eye(X.shape[1]), (X.shape[0],) + (X.shape[1],) * 2), real(X)[1]))
+    assert identities9(xs, fs, xm, fm)[3] > 1e-3
+    monkeypatch.undo()
+    real9 = mortar.shape9                      # (the dual basis keeps its 9 functions)
+    monkeypatch.setattr(mortar, "shape9", lambda xi: real9(xi) if xi.ndim == 2 else
+                        np.concatenate([mortar_q2.bilinear(xi),
+                                        np.zeros(xi.shape[:-1] + (5,))], axis=-1))
+    assert identities9(xs, fs, xm, fm)[3] > 1e-3
