@@ -185,7 +185,9 @@ def test_held_slip_rows_cut_the_krylov_iterations():
     whose slip rows A_t - F n A_n the multigrid's smoother cannot relax: measured (1 rank)
     68 Krylov iterations in all and 7 Newton steps on the finest level (PETSc 3.18; 3.26:
     62 and 6) against 559 and 24 (896 and 26) with the rows in the preconditioner (inf);
-    the same answer."""
+    the same answer. On more ranks the partition helps the plain run (2 ranks: 67 against
+    171; 4 ranks: 67 against 118-123, measured 2026-11-28, PETSc 3.18), so the bound is
+    0.7 there (the 1-rank bound, 0.5, failed once on 4 ranks: 0.57)."""
     sc = paper_scene(nd=16, mode="newton")
     sc["contact"]["friction"] = 1e4
     held = solve(scenes.validate(sc))
@@ -193,7 +195,8 @@ def test_held_slip_rows_cut_the_krylov_iterations():
         plain = solve(scenes.validate(sc))
     assert held.converged and plain.converged
     assert held.inner.iterations <= 10, held.inner.iterations
-    assert held.inner.ksp_iterations < 0.5 * plain.inner.ksp_iterations, \
+    ratio = 0.5 if held.comm.getSize() == 1 else 0.7
+    assert held.inner.ksp_iterations < ratio * plain.inner.ksp_iterations, \
         (held.inner.ksp_iterations, plain.inner.ksp_iterations)
     (u, p), (ur, pref) = fields(held), fields(plain)
     assert rel_err(u, ur) < 1e-7 and np.abs(p - pref).max() < 1e-7 * np.abs(pref).max()
