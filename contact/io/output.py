@@ -57,7 +57,7 @@ BODY = (Field("displacement", "fields/displacement", 3, "Node", help="u (x, y, z
         Field("cell_error_indicator", "cells/error_indicator", 1, "Cell",
               help="||u_h - P u_2h||_a on the cell: where the last refinement changed the "
                    "solution, i.e. where the error lives (contact/analysis/estimate.py); NaN "
-                   "where there is no coarse level (one mesh level, load increments)"),
+                   "where there is no coarse level (one mesh level)"),
         Field("body", "cells/body", 1, "Cell", help="the cell's body: its place in the "
               "scene's bodies: (0 in a one-body scene; float64 as status)"))
 #: the contact nodes' fields (stress.contact_state)
