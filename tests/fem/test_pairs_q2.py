@@ -22,13 +22,12 @@ import numpy as np
 import pytest
 from conftest import gather, rel_err, solve, two_blocks
 from mpi4py import MPI
+from test_pairs import P, exact
 
 from contact import options
 from contact import scene as scenes
 from contact.analysis import stress
 from contact.scene import SceneError
-
-P = 0.01
 
 
 def q2_blocks(friction=0.0, base=3, punch=4, layers=2, **kw):
@@ -39,18 +38,6 @@ def q2_blocks(friction=0.0, base=3, punch=4, layers=2, **kw):
         b["cells"][2] = layers
     sc["mesh"] = {"element": "q2"}
     return sc
-
-
-def exact(xyz, young, poisson):
-    """Uniaxial stress -p along z in both bodies (base z < 0.5), the symmetry planes
-    x = 0, y = 0 (tests/fem/test_pairs.py)."""
-    eb, ep = young
-    z = xyz[:, 2]
-    u = np.zeros_like(xyz)
-    u[:, 2] = np.where(z <= 0.5, -P * z / eb, -P * 0.5 / eb - P * (z - 0.5) / ep)
-    e = np.where(z <= 0.5 + 1e-12, eb, ep)
-    u[:, 0], u[:, 1] = poisson * P * xyz[:, 0] / e, poisson * P * xyz[:, 1] / e
-    return u
 
 
 def check_patch(pr, young=(1.0, 1.0), nodes=81):
