@@ -93,14 +93,14 @@ def design(sc, solved, auto):
     # the finest level's Nd over the scene's: 1, but 2^K with a gmsh body (-nd its coarse
     # level's, -mesh_refine K)
     refined = max(1, solved.nd // solved.scene["mesh"]["nd"])
-    for key, box, i, slabs, coarse in _targets(mesh, solved, auto):
+    for key, box, counts, i, slabs, coarse in _targets(mesh, solved, auto):
         g = box.get("grading")
         g = box["grading"] = {} if not isinstance(g, dict) else g
         lo, hi = np.asarray(box["lower"], float), np.asarray(box["upper"], float)
         edges, E = slabs
         if coarse is not None and 2 * coarse.size != E.size:
             coarse = None
-        cells = box["cells"][i] * mesh["nd"] * refined * (2 if order == 2 else 1)
+        cells = counts[i] * mesh["nd"] * refined * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
         h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (hi[i] - lo[i])
@@ -110,31 +110,27 @@ def design(sc, solved, auto):
 
 
 def _targets(mesh, solved, auto):
-    """Per graded axis: (info key, the box's dict (lower, upper, cells, grading: the mesh
-    section's, cells = cells_per_nd, or a body's), the axis index, (edges, E) of the
-    solved problem's indicator along it, the coarser level's E or None). A body's slabs are
-    its own cells' (disc.body_of), on its box's lattice placed by its grading alone
-    (level.reference through mesh/bodies.py's map without lower_surface: the slabs of a
-    curved lower face are those of its box); no coarser level's (local orders: the
-    element's)."""
+    """Per graded axis: (info key, the box's dict (lower, upper, grading: the mesh section
+    or a body), its cells per Nd, the axis index, (edges, E) of the solved problem's
+    indicator along it, the coarser level's E or None). A body's slabs are its own cells'
+    (disc.body_of), on its box's lattice placed by its grading alone (level.reference
+    through mesh/bodies.py's map without lower_surface: the slabs of a curved lower face
+    are those of its box); no coarser level's (local orders: the element's)."""
     if mesh.get("type", "box") != "bodies":
-        box = dict(mesh, cells=mesh["cells_per_nd"])
         for a in auto:
             i = grading.AXES.index(a)
             coarse = solved.coarse_slabs[i][1] if solved.coarse_slabs is not None else None
-            yield a, box, i, estimate.slab_errors(solved, i), coarse
-        if auto:
-            mesh["grading"] = box["grading"]
+            yield a, mesh, mesh["cells_per_nd"], i, estimate.slab_errors(solved, i), coarse
         return
-    disc = solved.disc
-    names = list(mesh["bodies"])
+    disc, names, places = solved.disc, list(mesh["bodies"]), {}
     for name, a in auto:
         b, j = mesh["bodies"][name], names.index(name)
-        pilot = disc.bodies[name]                        # the solved scene's body
-        X = bodies.body_map(disc.level.reference, dict(pilot, lower_surface=None))
+        if name not in places:                  # the solved scene's body, its box's places
+            places[name] = bodies.body_map(disc.level.reference,
+                                           dict(disc.bodies[name], lower_surface=None))
         i = grading.AXES.index(a)
-        yield f"{name}.{a}", b, i, estimate.slab_errors(
-            solved, i, cells=np.flatnonzero(disc.body_of == j), coords=X), None
+        yield f"{name}.{a}", b, b["cells"], i, estimate.slab_errors(
+            solved, i, cells=np.flatnonzero(disc.body_of == j), coords=places[name]), None
 
 
 def pilot_scene(sc, auto):
