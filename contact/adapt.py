@@ -34,7 +34,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact import options, scene_grading
-from contact.analysis import estimate
+from contact.analysis import estimate, goal as goals
 from contact.fem import QUADRATIC
 from contact.mesh import bodies, grading
 from contact.problem import ContactProblem
@@ -72,6 +72,8 @@ def axes(sc):
         return []
     else:
         auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
+    if auto:
+        goal()                          # (-error_quantity checked before any solve)
     if auto and not options.get("error_estimate"):
         raise ValueError("mesh.grading auto grades from the error indicator, which "
                          "-error_estimate 0 turns off")
@@ -133,6 +135,17 @@ def _targets(mesh, solved, auto):
             solved, i, cells=np.flatnonzero(disc.body_of == j), coords=places[name]), None
 
 
+def goal():
+    """The quantity the grading aims at (-error_quantity): "force" or "max_u", whose dual
+    solution weighs the indicator (analysis/goal.py), or None for the energy (the
+    indicator alone)."""
+    q = options.get("error_quantity")
+    if q not in ("energy",) + goals.GOALS:
+        raise ValueError(f"-error_quantity must be one of energy, {', '.join(goals.GOALS)}, "
+                         f"got {q!r}")
+    return None if q == "energy" else q
+
+
 def pilot_scene(sc, auto):
     """The pilot: `sc` at Nd / -mesh_grading_pilot, its auto axes uniform."""
     out = copy.deepcopy(sc)
@@ -165,7 +178,7 @@ def graded_scene(sc, comm, auto, solved=None):
     t0, pilot_time = time.perf_counter(), None
     if solved is None:       # two levels below the pilot where Nd has them: its indicator
         with options.inserted({"c2f_levels": "2"}):         # and each slab's local order
-            solved = ContactProblem(pilot_scene(sc, auto), comm).solve()
+            solved = ContactProblem(pilot_scene(sc, auto), comm, goal=goal()).solve()
         pilot_time = time.perf_counter() - t0
     scene, info = design(sc, solved, auto)
     nd, el = solved.nd, solved.element

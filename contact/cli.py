@@ -107,7 +107,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     if auto:
         sc, info = adapt.graded_scene(sc, comm, auto)
     while True:
-        problem = ContactProblem(copy.deepcopy(sc), comm)
+        problem = ContactProblem(copy.deepcopy(sc), comm, goal=adapt.goal() if grade else None)
         problem.grading_info = info
         problem.skipped += skipped
         problem.solve()

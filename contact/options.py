@@ -73,8 +73,7 @@ REGISTRY = [
            "elements, its nodes are the vertices of the mesh refined once), q2p1 (q2 with a "
            "linear pressure per element: no locking), auto (q1 in -solver_mode faithful, "
            "else q2p1 where nu >= 0.4 (-nd then counts its elements), else q1)",
-           "auto|q1|bbar|q2|q2p1",
-           ("mesh", "element")),
+           "auto|q1|bbar|q2|q2p1", ("mesh", "element")),
     Option("young", None, float, "Young's modulus E", "E", ("material", "young")),
     Option("poisson", None, float, "Poisson ratio nu", "NU", ("material", "poisson")),
     Option("load_steps", 1, int, "quasi-static load increments (1: the static problem)", "N",
@@ -98,7 +97,8 @@ REGISTRY = [
            "-error_quantity is <= TOL; prints error against run time as it goes; stops "
            "with a named reason at -error_max_dofs or where the levels are not asymptotic "
            "(then exit status 1, the last run's results written); 0: off", "TOL"),
-    Option("error_quantity", "energy", str, "the quantity -error_target bounds",
+    Option("error_quantity", "energy", str, "the quantity -error_target bounds and a grading "
+           "aims at (force, max_u: the indicator weighed by its dual, analysis/goal.py)",
            "energy|force|max_u"),
     Option("error_refine", "graded", str, "-error_target: graded (each run graded by the "
            "previous run's error indicator, contact/adapt.py) or uniform", "graded|uniform"),

@@ -22,7 +22,7 @@ from contact.solvers import driver, multigrid
 from contact.solvers.linear import LinearSolvers
 from contact.solvers.solution import Solution
 from contact.io import output
-from contact.analysis import estimate
+from contact.analysis import estimate, goal as goals
 from contact import fem, options
 from contact.mesh import transfer
 from contact.fem.discretisation import Discretisation, element_of
@@ -46,9 +46,12 @@ class ContactProblem:
     """Builds the discretisation of `scene` on `comm` and checks it; `solve()` runs the
     loops (c2f_levels: the coarse-to-fine levels, None: -c2f_levels or the scene's).
     hierarchy, level: a level of an existing mesh hierarchy (the coarse-to-fine start's
-    coarse problems); default: the finest level of the scene's own."""
+    coarse problems); default: the finest level of the scene's own. goal: "force" or
+    "max_u": each level also solves that quantity's dual (analysis/goal.py) and the
+    grading's parts (`goal_parts`) weigh the indicator by the dual's; None: the energy's."""
 
-    def __init__(self, scene, comm=None, c2f_levels=None, hierarchy=None, level=-1):
+    def __init__(self, scene, comm=None, c2f_levels=None, hierarchy=None, level=-1,
+                 goal=None):
         t0 = time.perf_counter()
         self.scene, self.comm = scene, comm or PETSc.COMM_WORLD
         self.c2f_levels = c2f_levels
@@ -60,6 +63,11 @@ class ContactProblem:
         self.error_indicator = None
         self._prolonged = None                # P u_2h while the fine level solves
         self.coarse_slabs = None              # the coarser level's slab_errors, or None
+        self.goal, self.dual = goal, None     # the grading's quantity, its dual solution
+        #: the cells' parts along x, y, z the grading equidistributes for `goal`
+        #: (goal.weighted), or None: the indicator's own (error_indicator[3])
+        self.goal_parts = None
+        self._prolonged_dual = None           # P z_2h while the fine level solves
         self.increments = []                  # the load increments' fields (output.py)
         #: -error_estimate: the coarse levels solved tightly and their quantities kept
         self.estimating = bool(options.get("error_estimate"))
@@ -104,11 +112,18 @@ class ContactProblem:
             for note in self.solution.skipped:
                 if note not in self.skipped:
                     self.skipped.append(note)
+            if self.goal is not None:
+                self.dual = goals.solve_dual(self, self.goal)
             x0 = getattr(self, "_prolonged", None)
             if x0 is not None:
                 self.error_indicator = estimate.cell_indicator(self, x0)
                 x0.destroy()
                 self._prolonged = None
+                if self._prolonged_dual is not None:
+                    self.goal_parts = goals.weighted(self.error_indicator[3], goals.dual_parts(
+                        self, self.dual, self._prolonged_dual))
+                    self._prolonged_dual.destroy()
+                    self._prolonged_dual = None
         finally:
             stage.pop()
         self.time_solve = time.perf_counter() - t0
@@ -160,7 +175,7 @@ class ContactProblem:
         estimating = self.estimating
         rtol = estimate.COARSE_RTOL if estimating else 1e-6
         with options.inserted({"newton_rtol": f"{rtol:g}"}):
-            coarse = ContactProblem(sc, self.comm, levels - 1, h, j).solve()
+            coarse = ContactProblem(sc, self.comm, levels - 1, h, j, self.goal).solve()
         self.coarse_runs = coarse.coarse_runs + [
             {"nd": coarse.nd, "time_s": coarse.time_setup + coarse.time_solve,
              "iterations": coarse.iterations(),
@@ -171,7 +186,11 @@ class ContactProblem:
             # estimate.cell_indicator only (each level starts from 0)
             self._prolonged = transfer.prolong_displacement(
                 h.prolongation(self.level), coarse, self, coarse.x, self.x.duplicate())
-        if coarse.error_indicator is not None and h.kind == "box":
+        if estimating and coarse.dual is not None:       # P z_2h: the dual's indicator
+            self._prolonged_dual = goals.prolong(h.prolongation(self.level), coarse, self,
+                                                 coarse.dual)
+        if coarse.error_indicator is not None and h.kind == "box" and \
+                (self.goal is None or coarse.goal_parts is not None):
             #: the coarser level's indicator along each axis (estimate.slab_errors): with
             #: this level's, the local orders of contact/adapt.py's grading
             self.coarse_slabs = [estimate.slab_errors(coarse, a) for a in range(3)]

@@ -187,6 +187,24 @@ def test_auto_grading_beats_uniform_on_the_beam(tmp_path):
 
 
 @skip_in_parallel
+def test_grading_aimed_at_a_quantity(tmp_path):
+    """q1, Nd 16: -error_quantity force / max_u weigh the indicator by that quantity's dual
+    (analysis/goal.py), and the quantity is closer to the report's continuum value than
+    with the energy's grading of the same size (measured N 0.074 % against 0.196 %, max |u|
+    1.04 % against 1.39 %: runs/results/adaptive.md), the points unlike the energy's."""
+    err, pts = {}, {}
+    for q in ("energy", "force", "max_u"):
+        s, _ = _summary(tmp_path / q, ["-nd", 16, "-mesh_grading", "auto",
+                                       "-error_quantity", q])
+        err[q] = {"force": abs(s["contact_result"]["normal"] / N_STAR - 1),
+                  "max_u": abs(s["max_displacement"] / MAX_U_STAR - 1)}
+        pts[q] = np.array(s["grading"]["axes"]["x"]["points"])
+    assert err["force"]["force"] < err["energy"]["force"] / 2.0, err
+    assert err["max_u"]["max_u"] < err["energy"]["max_u"] / 1.2, err
+    assert np.abs(pts["force"] - pts["energy"]).max() > 1e-3
+
+
+@skip_in_parallel
 def test_auto_grading_of_load_increments(tmp_path):
     """block_shear.yaml (pressed, then sheared, in 4 increments), Nd 16: the pilot's
     indicator is that of its last increments (problem.py), so -mesh_grading auto runs (it
@@ -250,15 +268,19 @@ def test_auto_grading_of_a_body(tmp_path):
 
 
 @skip_in_parallel
-def test_auto_grading_same_on_two_ranks(tmp_path):
-    """The pilot's indicator and so the points are the same on 1 and 2 ranks (1e-8), and
-    so is the graded run's answer."""
-    one, _ = _summary(tmp_path / "1", ["-nd", 16, "-mesh_grading", "auto"], 1)
-    two, _ = _summary(tmp_path / "2", ["-nd", 16, "-mesh_grading", "auto"], 2)
+@pytest.mark.parametrize("quantity, tol, rel", [("energy", 1e-8, 1e-8), ("force", 1e-5, 1e-6)])
+def test_auto_grading_same_on_two_ranks(tmp_path, quantity, tol, rel):
+    """The pilot's indicator and so the points are the same on 1 and 2 ranks (1e-8; aimed
+    at the force 1e-5, 0.3 % of the smallest cell: sqrt(D_u D_z) where both are small
+    carries the solvers' tolerances further; measured 2.5e-6), and so is the graded run's
+    answer (to 1e-8, aimed: 1e-6)."""
+    args = ["-nd", 16, "-mesh_grading", "auto", "-error_quantity", quantity]
+    one, _ = _summary(tmp_path / "1", args, 1)
+    two, _ = _summary(tmp_path / "2", args, 2)
     for a in "xyz":
         p1, p2 = (np.array(s["grading"]["axes"][a]["points"]) for s in (one, two))
-        assert np.abs(p1 - p2).max() < 1e-8          # (the pilots agree to the solver)
-    assert two["energy"] == pytest.approx(one["energy"], rel=1e-8)
+        assert np.abs(p1 - p2).max() < tol          # (the pilots agree to the solver)
+    assert two["energy"] == pytest.approx(one["energy"], rel=rel)
 
 
 @skip_in_parallel
@@ -268,7 +290,10 @@ def test_auto_grading_same_on_two_ranks(tmp_path):
     (["-mesh_grading", "auto", "-scene", f"{ROOT}/runs/scenes/hertz.yaml"],
      "mesh.grading auto needs a box mesh"),
     (["-error_target", 0.01, "-error_refine", "local"], "-error_refine must be graded or"),
-    (["-mesh_grading", "auto", "-error_estimate", 0], "which -error_estimate 0 turns off")])
+    (["-mesh_grading", "auto", "-error_estimate", 0], "which -error_estimate 0 turns off"),
+    (["-mesh_grading", "auto", "-error_quantity", "stress"], "-error_quantity must be one of"),
+    (["-mesh_grading", "auto", "-error_quantity", "force", "-element", "bbar"],
+     "-error_quantity force grades q1 and q2 meshes, not bbar")])
 def test_bad_grading_options(tmp_path, args, words):
     p = cli(["-nd", 4, *args, "-output_dir", tmp_path])
     assert p.returncode == 1 and words in p.stderr, p.stderr

@@ -60,19 +60,26 @@ def cell_indicator(problem, x0):
     for v, x in ((d, problem.x), (d0, x0)):
         if v is not x:                  # (x itself where there is no u_D and no frame)
             v.destroy()
+    return cell_parts(problem, e, u)
+
+
+def cell_parts(problem, e, u=None):
+    """cell_indicator's (eta, its total, ||u||_a (0 without u), D) of the local vertex
+    values e (nv, 3) in x, y, z (and u): also the dual's (goal.py)."""
     conn, coords = problem.conn, problem.coords
     mat = problem.scene["material"]
     lam, mu = fem.lame(mat["young"], mat["poisson"])
     kind = "bbar" if problem.element == "bbar" else "q1"
     eta, norm = np.zeros(conn.shape[0]), np.zeros(conn.shape[0])
     D = np.zeros((conn.shape[0], 3))
+    fields = ((eta, e),) if u is None else ((eta, e), (norm, u))
     for a in range(0, conn.shape[0], fem.CHUNK):
         c = conn[a:a + fem.CHUNK]
         dNdx, wdet = fem.geometry(coords[c])                        # (c, g, 8, 3), (c, g)
         G = np.matmul(dNdx.transpose(0, 1, 3, 2), e[c][:, None])    # (c, g, axis, comp)
         D[a:a + fem.CHUNK] = mu * np.einsum("cg,cgak->ca", wdet, G * G)
         K, shape = fem.element_stiffness_shapes(coords[c], lam, mu, kind)
-        for out, v in ((eta, e), (norm, u)):
+        for out, v in fields:
             w = v[c].reshape(c.shape[0], -1)
             if shape is None:                       # a matrix per cell
                 out[a:a + fem.CHUNK] = np.einsum("ci,cij,cj->c", w, K, w)
@@ -97,7 +104,8 @@ def slab_errors(problem, axis, cells=None, coords=None):
     comm = problem.comm.tompi4py()
     x = (problem.coords if coords is None else coords)[:, axis]
     conn = problem.conn if cells is None else problem.conn[cells]
-    part = problem.error_indicator[3][:, axis]
+    part = (problem.error_indicator[3] if problem.goal_parts is None
+            else problem.goal_parts)[:, axis]
     if cells is not None:
         part = part[cells]
     mine = np.unique(x if cells is None else x[conn])
