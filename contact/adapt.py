@@ -5,9 +5,9 @@ where a traction ends): the cell indicator of a solved mesh (analysis/estimate.p
 cell_indicator, the change the last refinement made on each cell) shows them. For each
 axis whose grading is `auto` (scene_grading.py; `-mesh_grading auto`: every axis):
 
-  1. a pilot, the same scene at Nd / -mesh_grading_pilot with those axes uniform, is solved
-     (its own coarse-to-fine levels, two where Nd has them: -c2f_levels 2 unless given;
-     the indicator needs one, the local orders two);
+  1. a pilot, the same scene at Nd / -mesh_grading_pilot (2 for q1, 1 for q2) with those
+     axes uniform, is solved (its own coarse-to-fine levels, two where Nd has them:
+     -c2f_levels 2 unless given; the indicator needs one, the local orders two);
   2. its squared indicator is summed over the slabs of cells along the axis
      (estimate.slab_errors), and mesh/grading.py's `equidistribute` turns the sums into
      the axis's `points` (cells denser where the error is, at most -mesh_grading_max_ratio
@@ -36,6 +36,7 @@ from petsc4py import PETSc
 from contact import options, scene_grading
 from contact.analysis import estimate, goal as goals
 from contact.fem import QUADRATIC
+from contact.fem.discretisation import element_of
 from contact.mesh import bodies, grading
 from contact.problem import ContactProblem
 
@@ -151,6 +152,8 @@ def pilot_scene(sc, auto):
     out = copy.deepcopy(sc)
     mesh = out["mesh"]
     div = options.get("mesh_grading_pilot")
+    if div is None:                   # q2's pilot at Nd / 2 sees too few slabs to place its
+        div = 1 if element_of(sc) in QUADRATIC else 2     # cells (adaptive.md)
     if div < 1 or mesh["nd"] // div < 1:
         raise ValueError(f"-mesh_grading_pilot {div}: the pilot needs Nd / {div} >= 1 "
                          f"(Nd = {mesh['nd']})")

@@ -126,17 +126,17 @@ REGISTRY = [
     Option("mesh_grading", "scene", str, "boxes and box bodies: auto: every axis graded "
            "where the error is, from the error indicator of a pilot at Nd / -mesh_grading_"
            "pilot (contact/adapt.py); uniform: the gradings dropped", "scene|auto|uniform"),
-    Option("mesh_grading_pilot", 2, int, "mesh.grading auto: the pilot's Nd is Nd / M", "M"),
-    Option("mesh_grading_max_ratio", 30.0, float, "mesh.grading auto: the largest ratio "
-           "of cell sizes along an axis", "R"),
+    Option("mesh_grading_pilot", None, int, "mesh.grading auto: the pilot's Nd is Nd / M "
+           "(default 2 for q1, 1 for q2: runs/results/adaptive.md)", "M"),
+    Option("mesh_grading_max_ratio", 30.0, float, "mesh.grading auto: the largest ratio of "
+           "cell sizes along an axis", "R"),
     Option("assembly_stencil", True, bool, "a box of identical cells on one process: the "
            "stiffness as a stencil of one element matrix (contact/fem/stencil.py; false: "
            "cell by cell, as on other meshes)", "BOOL"),
     Option("gmsh_verbose", False, bool, "show gmsh's own messages", "BOOL"),
     Option("debug", False, bool, "show the traceback of an error", ""),
     Option("help", None, bool, "this list", ""),
-    Option("dm_vec_type", None, str, "Vec type of the loops (e.g. cuda; also -vec_type)",
-           "TYPE"),
+    Option("dm_vec_type", None, str, "Vec type of the loops (e.g. cuda; also -vec_type)", "TYPE"),
     Option("dm_mat_type", None, str, "Mat type, of the AIJ family (e.g. aij, aijcusparse; "
            "also -mat_type). Default: BAIJ for q1 with the multigrid in the newton mode "
            "(coarse operator rediscretised), else AIJ; aij there: PETSc's Galerkin products",

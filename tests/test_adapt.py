@@ -187,6 +187,18 @@ def test_auto_grading_beats_uniform_on_the_beam(tmp_path):
 
 
 @skip_in_parallel
+def test_q2_pilot_at_nd(tmp_path):
+    """q2's pilot is the scene at Nd itself (-mesh_grading_pilot's default for q2: at
+    Nd / 2 it places the cells from too few slabs; runs/results/adaptive.md), q1's at
+    Nd / 2 (test_auto_grading_beats_uniform_on_the_beam); -mesh_grading_pilot 2 still
+    asks for Nd / 2."""
+    for args, nd in (([], 4), (["-mesh_grading_pilot", 2], 2)):
+        s, _ = _summary(tmp_path / str(nd), ["-element", "q2", "-nd", 4, "-mesh_grading",
+                                             "auto", *args])
+        assert {a["from_nd"] for a in s["grading"]["axes"].values()} == {nd}
+
+
+@skip_in_parallel
 def test_grading_aimed_at_a_quantity(tmp_path):
     """q1, Nd 16: -error_quantity force / max_u weigh the indicator by that quantity's dual
     (analysis/goal.py), and the quantity is closer to the report's continuum value than
