@@ -31,7 +31,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact import expression
-from contact.mesh.gmshio import cad_label
+from contact.mesh.gmshio import cad_label, read_rank0
 from contact.mesh.grading import graded
 from contact.mesh.plex import BODY_LABEL, HEX_FACES, HEX_REF, MeshError, labelled_cell_faces
 
@@ -59,9 +59,8 @@ def _body_cells(b, nd):
     if not read(b):
         return (*box_cells([int(c) * int(nd) for c in b["cells"]], b["lower"], b["upper"]),
                 {}, {})
-    from contact.mesh import gmshio               # gmsh is imported only here
-    m = b["mesh"]
-    return gmshio.read_rank0(str(m["file"]), {"nd": nd, **m.get("parameters", {})},
+    m = b["mesh"]                                 # (gmsh is imported in gmshio alone)
+    return read_rank0(str(m["file"]), {"nd": nd, **m.get("parameters", {})},
                              PETSc.Options().getBool("gmsh_verbose", False))
 
 

@@ -128,8 +128,9 @@ def _owners(dm, x):
 
 def snap(coarse, level, sources):
     """Level `level`, the refinement of level `coarse` (placed: on the CAD), with its
-    vertices on the CAD of its gmsh meshes (module docstring); sources: {body index (0: a one-body gmsh mesh): (file, gmsh
-    parameters)}. Collective; does nothing (to the bit) where the mesh has no CAD label."""
+    vertices on the CAD of its gmsh meshes (module docstring); sources: {body index (0: a
+    one-body gmsh mesh): (file, gmsh parameters)}. Collective; does nothing (to the bit)
+    where the mesh has no CAD label."""
     dm = level.dm
     mpi = dm.getComm().tompi4py()
     labels = _labels(dm)

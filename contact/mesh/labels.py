@@ -64,11 +64,11 @@ def mark_surfaces(dm, u):
 
 
 def surface_masks(dm, u):
-    """The bitmasks of u's face labels ("physical:<group>", "cad:*") on a refined level (u: dm's cells
-    and vertices): face k of a marked cell is in the group when its 4 vertices are on the
-    group's surface ("surface:<label>", mark_surfaces). Exact for the children of a
-    marked cell: of their faces, those inside the parent hold its centre, which is not on
-    the surface, and those on a parent face not in the group hold that face's centre."""
+    """The bitmasks of u's face labels ("physical:<group>", "cad:*") on a refined level
+    (u: dm's cells and vertices): face k of a marked cell is in the group when its 4
+    vertices are on the group's surface ("surface:<label>", mark_surfaces). Exact for the
+    children of a marked cell: of their faces, those inside the parent hold its centre,
+    which is not on the surface, and those on a parent face not in the group hold that face's centre."""
     conn = mesh.cell_vertices(u)[0]
     vs, ve = dm.getDepthStratum(0)
     cs, ce = u.getHeightStratum(0)

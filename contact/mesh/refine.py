@@ -13,8 +13,9 @@ Nd = 80). Several processes refine with DMRefine (hierarchy.py), which also make
 points' ownership (the point SF).
 
 The cell labels "physical:<group>" (a gmsh physical group's faces of each cell as a
-bitmask, gmshio.py) and "cad:<body>:<surface>" (a CAD surface's, cad.py) carry over exactly: child i's face k lies on its parent's face k when
-vertex i of the reference cell lies on that face's plane, and on no other parent face.
+bitmask, gmshio.py) and "cad:<body>:<surface>" (a CAD surface's, cad.py) carry over
+exactly: child i's face k lies on its parent's face k when vertex i of the reference cell
+lies on that face's plane, and on no other parent face.
 The cell label "body" (several bodies, mesh/bodies.py) goes to the 8 children as it is.
 """
 import numpy as np
