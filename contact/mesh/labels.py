@@ -68,7 +68,8 @@ def surface_masks(dm, u):
     (u: dm's cells and vertices): face k of a marked cell is in the group when its 4
     vertices are on the group's surface ("surface:<label>", mark_surfaces). Exact for the
     children of a marked cell: of their faces, those inside the parent hold its centre,
-    which is not on the surface, and those on a parent face not in the group hold that face's centre."""
+    which is not on the surface, and those on a parent face not in the group hold that
+    face's centre."""
     conn = mesh.cell_vertices(u)[0]
     vs, ve = dm.getDepthStratum(0)
     cs, ce = u.getHeightStratum(0)
