@@ -4,12 +4,14 @@
 // all-hexahedral (transfinite), graded toward the contact point (0, 0, 0): nx nd cells
 // along x and y whose sizes grow by rx from x = 0 to x = L (gmsh's Progression
 // rx^(1 / (nx nd)) by arc length: mesh.grading's progression rx), nz nd along z growing
-// by rz from the lower face up. The lower face's four edges are splines through ns + 1
-// points of the paraboloid; the face itself is gmsh's transfinite interpolation of its
-// edges, which holds z = g(x) + h(y) exactly.
+// by rz from the lower face up. The lower face's four edges are quadratic Bezier curves,
+// the paraboloid's sections exactly (x or y linear in the curve's parameter); the face
+// itself is gmsh's transfinite (Coons) interpolation of its edges, which holds
+// z = g(x) + h(y) exactly: the CAD surface is the paraboloid (to rounding), and the
+// refined levels' vertices moved onto it (contact/mesh/cad.py) lie on the paraboloid.
 //
 // Parameters (gmsh -setnumber, or the body's mesh.parameters; nd: the scene's coarse nd):
-//   nd (default 1)   L, H (2, 2)   R (10)   nx, nz (6, 4)   rx, rz (6, 5)   ns (16)
+//   nd (default 1)   L, H (2, 2)   R (10)   nx, nz (6, 4)   rx, rz (6, 5)
 //
 // Physical surfaces:
 //   "contact"  the curved lower face    "top"      z = H
@@ -22,34 +24,17 @@ DefineConstant[ L = {2, Name "L"} ];    DefineConstant[ H = {2, Name "H"} ];
 DefineConstant[ R = {10, Name "R"} ];
 DefineConstant[ nx = {6, Name "nx"} ];  DefineConstant[ nz = {4, Name "nz"} ];
 DefineConstant[ rx = {6, Name "rx"} ];  DefineConstant[ rz = {5, Name "rz"} ];
-DefineConstant[ ns = {16, Name "ns"} ];
 
 Point(1) = {0, 0, 0};  Point(2) = {L, 0, L^2 / (2 * R)};
 Point(3) = {L, L, L^2 / R};  Point(4) = {0, L, L^2 / (2 * R)};
 Point(5) = {0, 0, H};  Point(6) = {L, 0, H};  Point(7) = {L, L, H};  Point(8) = {0, L, H};
 
-// the lower face's edges, each away from x = 0 or y = 0: splines on the paraboloid
-p = 100;
-For e In {1:4}
-  If (e == 1)      // y = 0: P1 -> P2
-    x0 = 0; y0 = 0; dx = 1; dy = 0; a = 1; b = 2;
-  ElseIf (e == 2)  // x = L: P2 -> P3
-    x0 = L; y0 = 0; dx = 0; dy = 1; a = 2; b = 3;
-  ElseIf (e == 3)  // y = L: P4 -> P3
-    x0 = 0; y0 = L; dx = 1; dy = 0; a = 4; b = 3;
-  Else             // x = 0: P1 -> P4
-    x0 = 0; y0 = 0; dx = 0; dy = 1; a = 1; b = 4;
-  EndIf
-  pts[] = {a};
-  For i In {1:ns - 1}
-    x = x0 + dx * L * i / ns;  y = y0 + dy * L * i / ns;
-    Point(p) = {x, y, (x^2 + y^2) / (2 * R)};
-    pts[] += {p};
-    p += 1;
-  EndFor
-  pts[] += {b};
-  Spline(e) = pts[];
-EndFor
+// the lower face's edges, each away from x = 0 or y = 0: quadratic Bezier curves, which
+// are the parabolas z = (x^2 + y^2) / (2 R) exactly (control points at the ends and at the
+// middle of x or y with the end's z: the tangents' intersection)
+Point(9) = {L / 2, 0, 0};  Point(10) = {L, L / 2, L^2 / (2 * R)};
+Point(11) = {L / 2, L, L^2 / (2 * R)};  Point(12) = {0, L / 2, 0};
+Bezier(1) = {1, 9, 2};  Bezier(2) = {2, 10, 3};  Bezier(3) = {4, 11, 3};  Bezier(4) = {1, 12, 4};
 Line(5) = {5, 6};  Line(6) = {6, 7};  Line(7) = {8, 7};  Line(8) = {5, 8};     // top
 Line(9) = {1, 5};  Line(10) = {2, 6}; Line(11) = {3, 7}; Line(12) = {4, 8};    // up
 Transfinite Curve{1:8} = nx * nd + 1 Using Progression rx^(1 / (nx * nd));

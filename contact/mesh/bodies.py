@@ -24,12 +24,14 @@ A box body with `grading` or `lower_surface` (scene_bodies.py) is a map of its b
 (body_map): each level's vertices are the map of that level's box lattice (`place`, like
 grading.place for a box mesh), level.reference keeping the unmapped places; boundary
 planes are found there, the element integrals use the mapped ones. A gmsh body's vertices
-are where its file (refined: the mean of their parents) puts them.
+are where its file puts them; refined, the mean of their parents, moved onto the file's
+CAD surfaces and curves where it has a curved one (a .geo: cad.py; a .msh has no CAD).
 """
 import numpy as np
 from petsc4py import PETSc
 
 from contact import expression
+from contact.mesh.gmshio import cad_label, read_rank0
 from contact.mesh.grading import graded
 from contact.mesh.plex import BODY_LABEL, HEX_FACES, HEX_REF, MeshError, labelled_cell_faces
 
@@ -52,12 +54,13 @@ def read(b):
 
 
 def _body_cells(b, nd):
-    """(conn (nc, 8), coords (nv, 3), {group: (nc,) face bitmask}) of body b at nd (rank 0)."""
+    """(conn (nc, 8), coords (nv, 3), {group: (nc,) face bitmask}, {CAD surface: (nc,) face
+    bitmask} (gmshio.read_rank0)) of body b at nd (rank 0)."""
     if not read(b):
-        return (*box_cells([int(c) * int(nd) for c in b["cells"]], b["lower"], b["upper"]), {})
-    from contact.mesh import gmshio               # gmsh is imported only here
-    m = b["mesh"]
-    return gmshio.read_rank0(str(m["file"]), {"nd": nd, **m.get("parameters", {})},
+        return (*box_cells([int(c) * int(nd) for c in b["cells"]], b["lower"], b["upper"]),
+                {}, {})
+    m = b["mesh"]                                 # (gmsh is imported in gmshio alone)
+    return read_rank0(str(m["file"]), {"nd": nd, **m.get("parameters", {})},
                              PETSc.Options().getBool("gmsh_verbose", False))
 
 
@@ -79,10 +82,11 @@ def create_mesh(comm, bodies, nd=1):
     and "physical:<group>". Returns (dm, {body: its physical group names}); MeshError
     (naming the body) on every rank."""
     conns, coords, owner, masks, groups, nv, err = [], [], [], {}, {}, 0, None
+    cad = {}                                     # (body, surface tag): (start, mask)
     if comm.getRank() == 0:
         for i, (name, b) in enumerate(bodies.items()):
             try:
-                conn, X, gm = _body_cells(b, nd)
+                conn, X, gm, surfaces = _body_cells(b, nd)
             except Exception as e:   # (gmsh's): every rank must hear of it
                 err = f"body {name!r}: " + (str(e) if isinstance(e, MeshError) else
                                             f"cannot read its mesh: {type(e).__name__}: {e}")
@@ -91,11 +95,12 @@ def create_mesh(comm, bodies, nd=1):
             start = sum(c.shape[0] for c in conns)
             for g, mask in gm.items():
                 masks.setdefault(g, []).append((start, mask))
+            cad.update({(i, t): (start, mask) for t, mask in surfaces.items()})
             conns.append(conn + nv)
             coords.append(X)
             owner.append(np.full(conn.shape[0], i, dtype=np.int64))
             nv += X.shape[0]
-    err, groups = comm.tompi4py().bcast((err, groups), root=0)
+    err, groups, surfaces = comm.tompi4py().bcast((err, groups, sorted(cad)), root=0)
     if err:
         raise MeshError(err)
     conn = np.concatenate(conns) if conns else np.zeros((0, 8))
@@ -111,6 +116,11 @@ def create_mesh(comm, bodies, nd=1):
         for start, m in masks.get(g, []):
             mask[start:start + m.size] = m
         _label_cells(dm, "physical:" + g, mask)
+    for i, t in surfaces:                          # a curved CAD (gmshio.py): cad.py
+        start, m = cad.get((i, t), (0, np.zeros(0, dtype=np.int64)))
+        mask = np.zeros(nc, dtype=np.int64)
+        mask[start:start + m.size] = m
+        _label_cells(dm, cad_label(i, t), mask)
     return dm, groups
 
 
@@ -120,7 +130,8 @@ def snap(level, bodies):
     vertex is a mean of its parent's, which rounds differently from vertex to vertex and
     from partition to partition; snapped, the refined bodies are the bodies built whole,
     to the bit (canonical orders sort by coordinates). A vertex's body is its cells'.
-    A gmsh body's vertices are left where the refinement put them."""
+    A gmsh body's vertices are left where the refinement put them (cad.py moves those
+    on a curved CAD surface, after)."""
     x = level.coords
     vb = np.full(x.shape[0], -1, dtype=np.intp)
     if level.conn.size:

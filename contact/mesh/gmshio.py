@@ -13,8 +13,16 @@ gmsh.open, which clears them), so they override `DefineConstant[ nd = {...} ];` 
 Cells are taken as gmsh orders them: an inverted hexahedron in a .msh stays inverted
 (`mesh.check_cells` reports it).
 
-gmsh is imported only here, and only on rank 0, when a scene uses a gmsh mesh.
+A .geo (or any file with a CAD geometry, not gmsh's "Discrete" entities: a .msh has none)
+with a curved surface (not "Plane") also gives, per boundary surface entity of its
+hexahedra, its faces' bitmask (`read_rank0`'s 4th value; the cell labels "cad:<body>:<tag>"
+of cad.py), and `Geometry` opens that model again to project refined vertices onto its
+surfaces and curves (cad.py, on every rank).
+
+gmsh is imported only here, and only on rank 0 to read, when a scene uses a gmsh mesh (and,
+to snap the refined levels of a curved .geo, on every rank: cad.py).
 """
+import contextlib
 import os
 
 import numpy as np
@@ -33,9 +41,10 @@ _VOLUME_TYPES = {4: "tetrahedra", 5: "hexahedra", 6: "prisms", 7: "pyramids",
                  19: "13-node pyramids"}
 
 
-def _face_masks(conn, groups, path):
+def _face_masks(conn, groups, path, strict=True):
     """Per group (name, quads (nq, 4) vertex indices, -1 = not a hex vertex): the (nc,)
-    bitmask of the hex faces the quads are. A quad on two cells marks the first one."""
+    bitmask of the hex faces the quads are. A quad on two cells marks the first one.
+    A quad that is no hexahedron's face: MeshError if strict, else left out."""
     nc = conn.shape[0]
     faces = np.sort(conn[:, HEX_FACES], axis=2).reshape(-1, 4)        # (6 nc, 4)
     quads = [np.sort(q, axis=1) for _, q in groups]
@@ -48,17 +57,19 @@ def _face_masks(conn, groups, path):
         hit = first[inv[start:start + q.shape[0]]]
         start += q.shape[0]
         miss = int(np.count_nonzero((hit == 6 * nc) | np.any(q < 0, axis=1)))
-        if miss:
+        if miss and strict:
             raise MeshError(f"mesh {path}: {miss} of the {q.shape[0]} faces of physical "
                             f"surface '{name}' are not faces of its hexahedra")
+        hit = hit[(hit < 6 * nc) & np.all(q >= 0, axis=1)]
         mask = masks.setdefault(name, np.zeros(nc, dtype=np.int64))
         np.bitwise_or.at(mask, hit // 6, np.left_shift(1, hit % 6))
     return masks
 
 
-def read_rank0(path, parameters, verbose):
-    """(cells (nc, 8) PETSc order, coords (nv, 3), {group name: (nc,) face bitmask}) of
-    the file on this process (rank 0 of read_gmsh; a gmsh body: mesh/bodies.py)."""
+@contextlib.contextmanager
+def _model(path, parameters, verbose):
+    """gmsh (the module) with the file merged into a model of its own, removed after (gmsh
+    finalized if this opened it)."""
     import gmsh
 
     if not os.path.isfile(path):
@@ -76,6 +87,36 @@ def read_rank0(path, parameters, verbose):
             gmsh.merge(path)         # gmsh.open would clear the parser variables set above
         except Exception as e:       # gmsh raises bare Exception with its last error
             raise MeshError(f"gmsh cannot read {path}: {e}") from None
+        yield gmsh
+    finally:
+        if owner:
+            gmsh.finalize()
+        else:
+            gmsh.model.remove()
+
+
+def _curved(gmsh, dim, tag, samples=17):
+    """Whether entity (dim, tag) has a CAD shape that is not flat: not gmsh's "Discrete"
+    (a .msh's), "Plane" or "Line", and its parametrisation's values on a grid of samples^dim
+    points not on one plane (a surface) or line (a curve) to 1e-10 of its extent (a .geo's
+    transfinite "Surface" may well be a plane)."""
+    kind = gmsh.model.getType(dim, tag)
+    if kind.startswith("Discrete") or kind in ("Plane", "Line"):
+        return False
+    lo, hi = gmsh.model.getParametrizationBounds(dim, tag)
+    axes = [np.linspace(a, b, samples) for a, b in zip(lo, hi)]
+    u = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
+    x = np.asarray(gmsh.model.getValue(dim, tag, u.ravel().tolist())).reshape(-1, 3)
+    sv = np.linalg.svd(x - x.mean(axis=0), compute_uv=False)
+    return bool(sv[dim] > 1e-10 * sv[0])
+
+
+def read_rank0(path, parameters, verbose):
+    """(cells (nc, 8) PETSc order, coords (nv, 3), {group name: (nc,) face bitmask},
+    {surface entity tag: (nc,) face bitmask}) of the file on this process (rank 0 of
+    read_gmsh; a gmsh body: mesh/bodies.py). The last is empty unless the file's geometry
+    has a curved surface (then it holds every surface entity with faces: cad.py)."""
+    with _model(path, parameters, verbose) as gmsh:
         if path.endswith(".geo"):
             for name, value in (parameters or {}).items():
                 got = gmsh.parser.getNumber(str(name))
@@ -113,22 +154,94 @@ def read_rank0(path, parameters, verbose):
         groups = []
         for dim, tag in gmsh.model.getPhysicalGroups(2):
             name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
-            quads = [np.zeros(0, dtype=np.int64)]
-            for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
-                for t, n in zip(*gmsh.model.mesh.getElements(2, ent)[::2]):
-                    if t != _QUAD:
-                        raise MeshError(f"mesh {path}: physical surface '{name}' has "
-                                        f"faces that are not 4-node quadrilaterals")
-                    quads.append(np.asarray(n, dtype=np.int64))
-            q = np.concatenate(quads)
-            pos = np.minimum(np.searchsorted(used, q), used.size - 1)
-            groups.append((name, np.where(used[pos] == q, pos, -1).reshape(-1, 4)))
-        return cells, coords, _face_masks(cells, groups, path)
-    finally:
-        if owner:
-            gmsh.finalize()
-        else:
-            gmsh.model.remove()
+            q = np.concatenate([_quads(gmsh, dim, ent, path, name).ravel() for ent in
+                                gmsh.model.getEntitiesForPhysicalGroup(dim, tag)] +
+                               [np.zeros(0, dtype=np.int64)])
+            groups.append((name, _indices(used, q).reshape(-1, 4)))
+        entities = []
+        if any(_curved(gmsh, 2, t) for _, t in gmsh.model.getEntities(2)):
+            for _, tag in gmsh.model.getEntities(2):
+                q = _quads(gmsh, 2, tag, path, None).ravel()
+                if q.size:
+                    entities.append((tag, _indices(used, q).reshape(-1, 4)))
+        cad = _face_masks(cells, [(f"surface {t}", q) for t, q in entities], path, False)
+        return (cells, coords, _face_masks(cells, groups, path),
+                {t: cad[f"surface {t}"] for t, _ in entities})
+
+
+def _quads(gmsh, dim, ent, path, name):
+    """The gmsh node tags (n, 4) of entity (dim, ent)'s quadrilaterals (those of physical
+    group `name`: MeshError for any other face; name None: the quadrilaterals alone)."""
+    quads = [np.zeros(0, dtype=np.int64)]
+    for t, n in zip(*gmsh.model.mesh.getElements(dim, ent)[::2]):
+        if t != _QUAD and name is None:
+            continue
+        if t != _QUAD:
+            raise MeshError(f"mesh {path}: physical surface '{name}' has "
+                            f"faces that are not 4-node quadrilaterals")
+        quads.append(np.asarray(n, dtype=np.int64))
+    return np.concatenate(quads).reshape(-1, 4)
+
+
+def _indices(used, q):
+    """Positions of gmsh node tags q in used (sorted), -1 where absent."""
+    pos = np.minimum(np.searchsorted(used, q), used.size - 1)
+    return np.where(used[pos] == q, pos, -1)
+
+
+class Geometry:
+    """A file's CAD model on this process (any rank), for cad.py: which entities are
+    curved, the curves two surfaces share, and points projected onto an entity. Use as a
+    context manager: `with Geometry(path, parameters) as g: ...`."""
+
+    #: Gauss-Newton steps after gmsh's closest point, and their stop (in the parameters)
+    STEPS, TOL = 20, 1e-14
+
+    def __init__(self, path, parameters):
+        self._cm = _model(str(path), parameters, False)
+
+    def __enter__(self):
+        self.gmsh = self._cm.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self._cm.__exit__(*exc)
+
+    def curved(self, dim, tag):
+        return _curved(self.gmsh, dim, tag)
+
+    def shared_curves(self, s1, s2):
+        """The tags of the curves on the boundary of both surfaces s1 and s2."""
+        ends = [{abs(t) for _, t in self.gmsh.model.getBoundary([(2, s)], oriented=False)}
+                for s in (s1, s2)]
+        return sorted(ends[0] & ends[1])
+
+    def parameters(self, dim, tag, x):
+        """The parameters (n, dim) on entity (dim, tag) of its points nearest x (n, 3):
+        gmsh's closest point's, made orthogonal by Gauss-Newton steps on the
+        parametrisation (gmsh's own is approximate on a built-in kernel's surface: 3e-4 off
+        on meshes/ball.geo); for points on the entity, theirs to rounding."""
+        model = self.gmsh.model
+        if x.shape[0] == 0:
+            return np.zeros((0, dim))
+        u = np.asarray(model.getClosestPoint(dim, tag, x.ravel().tolist())[1],
+                       dtype=float).reshape(-1, dim)
+        lo, hi = (np.asarray(b, dtype=float) for b in model.getParametrizationBounds(dim, tag))
+        for _ in range(self.STEPS):
+            d = np.asarray(model.getDerivative(dim, tag, u.ravel().tolist())).reshape(-1, dim, 3)
+            A = np.einsum("nai,nbi->nab", d, d)
+            r = x - self.value(dim, tag, u)
+            step = np.linalg.solve(A, np.einsum("nai,ni->na", d, r)[..., None])[..., 0]
+            u = np.clip(u + step, lo, hi)
+            if np.abs(step).max(initial=0.0) <= self.TOL * np.max(hi - lo):
+                break
+        return u
+
+    def value(self, dim, tag, u):
+        """The points (n, 3) of entity (dim, tag) at parameters u (n, dim)."""
+        if u.shape[0] == 0:
+            return np.zeros((0, 3))
+        return np.asarray(self.gmsh.model.getValue(dim, tag, u.ravel().tolist())).reshape(-1, 3)
 
 
 def read_gmsh(comm, path, parameters=None):
@@ -153,23 +266,34 @@ def read_gmsh(comm, path, parameters=None):
     if err:
         raise MeshError(err)
     if data is not None:
-        cells, coords, masks = data
+        cells, coords, masks, cad = data
     else:
-        cells, coords, masks = np.zeros((0, 8)), np.zeros((0, 3)), {}
-    names = mpi.bcast(list(masks), root=0)
+        cells, coords, masks, cad = np.zeros((0, 8)), np.zeros((0, 3)), {}, {}
+    names, tags = mpi.bcast((list(masks), sorted(cad)), root=0)
     dm = PETSc.DMPlex().createFromCellList(3, np.asarray(cells, dtype=PETSc.IntType),
                                            np.asarray(coords, dtype=PETSc.RealType),
                                            interpolate=False, comm=comm)
-    cs = dm.getHeightStratum(0)[0]
     for name in names:
-        dm.createLabel("physical:" + name)
-        mask = masks.get(name)
-        if mask is None:
-            continue
-        label = dm.getLabel("physical:" + name)
-        for v in np.unique(mask[mask > 0]):             # at most 63 values
-            pts = (np.flatnonzero(mask == v) + cs).astype(PETSc.IntType)
-            is_ = PETSc.IS().createGeneral(pts, comm=PETSc.COMM_SELF)
-            label.setStratumIS(int(v), is_)
-            is_.destroy()
+        mask_label(dm, "physical:" + name, masks.get(name))
+    for tag in tags:                                 # a curved CAD: cad.py
+        mask_label(dm, cad_label(0, tag), cad.get(tag))
     return dm, names
+
+
+def cad_label(body, tag):
+    """The cell label of the faces on surface entity `tag` of body index `body` (cad.py)."""
+    return f"cad:{body}:{tag}"
+
+
+def mask_label(dm, name, mask):
+    """The cell label `name` (created on every rank) with value mask[c] on cell c where
+    it is not 0 (mask None: no cell here)."""
+    dm.createLabel(name)
+    if mask is None:
+        return
+    label, cs = dm.getLabel(name), dm.getHeightStratum(0)[0]
+    for v in np.unique(mask[mask > 0]):             # at most 63 values
+        pts = (np.flatnonzero(mask == v) + cs).astype(PETSc.IntType)
+        is_ = PETSc.IS().createGeneral(pts, comm=PETSc.COMM_SELF)
+        label.setStratumIS(int(v), is_)
+        is_.destroy()

@@ -42,6 +42,7 @@ from petsc4py import PETSc
 
 from contact import mesh, options, petsc_compat
 from contact.mesh import HEX_FACES, HEX_REF, Q2_REF, Q2_ROLE, MeshError
+from contact.mesh.cad import snap as snap_cad
 from contact.mesh.bodies import create_mesh as create_bodies, mapped, read as read_body
 from contact.mesh.bodies import place as place_bodies
 from contact.mesh.labels import copy_cell_labels, mark_surfaces, surface_masks
@@ -81,6 +82,8 @@ class Level:
         mesh.displacement_section(dm)
         self.conn, self.coords = mesh.cell_vertices(dm)
         self.reference = self.coords             # the lattice's places (grading.place)
+        #: the vertices prolongation() interpolates at their reference place (cad.py)
+        self.topological = None
         g = dm.getGlobalVec()
         self.n_dofs = g.getSize()
         dm.restoreGlobalVec(g)
@@ -113,6 +116,11 @@ class MeshHierarchy:
             raise ValueError(f"-mesh_refine must be >= -1 (-1: automatic), got {refine}")
         self.body_groups = {}                   # bodies: each one's physical groups
         read = self.kind == "bodies" and any(map(read_body, m["bodies"].values()))
+        #: {body index: (file, gmsh parameters)} of the gmsh meshes (cad.py: a curved .geo)
+        self.cad = {i: (b["mesh"]["file"], {"nd": nd, **b["mesh"].get("parameters", {})})
+                    for i, b in enumerate(m["bodies"].values()) if read_body(b)} \
+            if read else {0: (m["file"], {"nd": nd, **m.get("parameters", {})})} \
+            if self.kind == "gmsh" else {}
         if self.kind == "box" or self.kind == "bodies" and not read:  # boxes: cells x Nd
             per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])] if self.kind == "box" \
                 else [sum(int(np.prod(b["cells"])) for b in m["bodies"].values()), 1, 1]
@@ -150,6 +158,8 @@ class MeshHierarchy:
                 lv = Level(nd0 << j, self._typed(dm))
                 if self.kind in ("box", "bodies"):
                     place_(lv)
+                if j and self.cad:               # refined: on the CAD (a curved .geo)
+                    snap_cad(self.levels[-1], lv, self.cad)
                 self.levels.append(lv)
                 dm = refine_serial(lv.dm, lv.conn, lv.reference) if j < k else None
             return
@@ -162,8 +172,10 @@ class MeshHierarchy:
             lv = Level(nd0 << j, self._typed(uninterpolated(dm)))
             if self.kind in ("box", "bodies"):
                 place_(lv)
-            if self.kind in ("gmsh", "file") or self.physical_names:   # groups' faces
-                (surface_masks if j else mark_surfaces)(dm, lv.dm)
+            if self.kind in ("gmsh", "file") or self.physical_names or self.cad:
+                (surface_masks if j else mark_surfaces)(dm, lv.dm)     # groups' faces
+            if j and self.cad:
+                snap_cad(self.levels[-1], lv, self.cad)
             self.levels.append(lv)
         dm.destroy()
 
@@ -384,8 +396,12 @@ def prolongation(coarse, fine):
         worst = max(worst, float((d[np.arange(q.size), q] / h).max(initial=0.0)))
         xi[s:s + CHUNK] = _XI27[q]
         if fine.reference is not fine.coords:          # graded: the Q1 values at its place
-            xi[s:s + CHUNK] = local_coordinates(_XI27[q], coarse.coords[coarse.conn[
-                parent[s:s + CHUNK]]], fine.coords[verts[s:s + CHUNK]])
+            rows = verts[s:s + CHUNK]                  # (but at a CAD body's: cad.py)
+            at = np.ones(rows.size, dtype=bool) if fine.topological is None else \
+                ~fine.topological[rows]
+            if at.any():
+                xi[s:s + CHUNK][at] = local_coordinates(_XI27[q][at], coarse.coords[
+                    coarse.conn[parent[s:s + CHUNK][at]]], fine.coords[rows[at]])
     if comm.tompi4py().allreduce(worst, op=MPI.MAX) > 1e-8:
         raise MeshError(f"level {fine.nd}: a vertex is not a vertex, edge or face midpoint "
                         f"or centre of its parent cell (relative distance {worst:.2e})")

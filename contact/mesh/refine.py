@@ -13,13 +13,15 @@ Nd = 80). Several processes refine with DMRefine (hierarchy.py), which also make
 points' ownership (the point SF).
 
 The cell labels "physical:<group>" (a gmsh physical group's faces of each cell as a
-bitmask, gmshio.py) carry over exactly: child i's face k lies on its parent's face k when
-vertex i of the reference cell lies on that face's plane, and on no other parent face.
+bitmask, gmshio.py) and "cad:<body>:<surface>" (a CAD surface's, cad.py) carry over
+exactly: child i's face k lies on its parent's face k when vertex i of the reference cell
+lies on that face's plane, and on no other parent face.
 The cell label "body" (several bodies, mesh/bodies.py) goes to the 8 children as it is.
 """
 import numpy as np
 from petsc4py import PETSc
 
+from contact.mesh.labels import FACE_LABELS
 from contact.mesh.plex import BODY_LABEL, HEX_EDGES, HEX_FACES, HEX_REF, Q2_REF, MeshError
 #: each face k of HEX_FACES: the reference axis it is normal to and its side (-1 or 1)
 FACE_AXIS = np.array([int(np.flatnonzero(np.ptp(HEX_REF[f], axis=0) == 0)[0])
@@ -109,7 +111,7 @@ def refine(dm, conn, coords):
     cs, ce = dm.getHeightStratum(0)
     for name in (dm.getLabelName(i) for i in range(dm.getNumLabels())):
         body = name == BODY_LABEL                    # (its values as they are, 0 too)
-        if not (body or name.startswith("physical:")):
+        if not (body or name.startswith(FACE_LABELS)):
             continue
         label = dm.getLabel(name)
         cells, masks = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
