@@ -8,16 +8,19 @@ entities' faces are the cell label "cad:<body>:<tag>" (a bitmask of HEX_FACES, c
 through refinement as the physical groups' are: refine.py, labels.py), and `snap` moves a
 refined level's vertices (levels 1, 2, ...; the coarse one is gmsh's) onto the geometry:
 
-    on the faces of one surface, curved      its closest point on that surface
-    on two surfaces (on the curve of both)   its closest point on that curve, if curved
+    on the faces of one surface, curved      the surface's point at the mean of its
+                                               parents' parameters there
+    on two surfaces (on the curve of both)   the same on that curve, if curved
     on three or more (a corner: a coarse     left, as on a plane or a line (to the bit: a
       vertex), on a plane                      file with flat surfaces only has no label)
     inside the body                          left at the mean of its parents
 
 The geometry is the file merged again on every rank, with the parameters its coarse mesh
 was read with (gmshio.Geometry: a .geo is parsed, not meshed, in milliseconds); each rank
-projects its own vertices (one gmsh call per entity), and a vertex on several ranks takes
-its owner's place. A .msh (a body of type file, or type gmsh with a .msh) has no CAD: its
+places its own vertices (the parents' parameters from gmsh's closest point, refined by
+Gauss-Newton: gmshio.Geometry; its closest point alone moves the vertices sideways, off
+the straight edges a q2 pair needs), and a vertex on several ranks takes its owner's
+place. A .msh (a body of type file, or type gmsh with a .msh) has no CAD: its
 refined levels keep the means (README).
 
 level.reference keeps the levels the refinement of the coarse mesh (where prolongation and
