@@ -3,12 +3,15 @@ and the hand-graded one, on the paper's beam: error against whole-process time.
 
 Part 1, equal sizes: `python -m contact -element E -nd N` on the uniform box
 (`-mesh_grading uniform`), on runs/scenes/paper_beam_graded.yaml (a fixed bump toward the
-beam's ends, runs/results/graded.md) and with `-mesh_grading auto` (a pilot at Nd / 2, its
-indicator -> the grading). Part 2, as a user asks for an accuracy: `-error_target TOL
--error_quantity Q` with `-error_refine graded` (each run graded by the one before) and
+beam's ends, runs/results/graded.md) and with `-mesh_grading auto` (a pilot's indicator ->
+the grading), aimed at the energy (auto), at the contact force N (auto-force:
+`-error_quantity force`, the indicator weighed by N's dual) and at max |u| (auto-max_u).
+Part 2, as a user asks for an accuracy: `-error_target TOL -error_quantity Q` with `-error_refine graded` (each run graded by the one before) and
 `uniform`. True errors: the distance to the continuum values of runs/results/report.md
 (q1 Richardson from Nd = 20, 40, 80, with their own error estimates, far below the errors
-here), so the runs are checked against something they did not compute.
+here), so the runs are checked against something they did not compute. The script writes
+runs/results/adaptive.md whole; what was read from it, by hand and dated, is kept in
+runs/results/adaptive-notes.md.
 
     python runs/adaptive.py [--ranks 2] [--q1 16 32] [--q2 8 12] [--targets] [--force]
     python runs/adaptive.py --smoke --out-dir DIR        (tests: q1 Nd 16, one rank)
@@ -25,7 +28,13 @@ from estimate import continuum_values  # noqa: E402  (runs/estimate.py: report.m
 ROOT = harness.ROOT
 GRADED = os.path.join(ROOT, "runs", "scenes", "paper_beam_graded.yaml")
 MESHES = {"uniform": ["-mesh_grading", "uniform"], "bump": ["-scene", GRADED],
-          "auto": ["-mesh_grading", "auto"]}
+          "auto": ["-mesh_grading", "auto"],
+          "auto-force": ["-mesh_grading", "auto", "-error_quantity", "force"],
+          "auto-max_u": ["-mesh_grading", "auto", "-error_quantity", "max_u"]}
+#: each quantity's panel of the plot: the meshes drawn (auto: aimed at that quantity)
+PANEL = {"max_displacement": ("uniform", "bump", "auto-max_u"),
+         "normal_force": ("uniform", "bump", "auto-force"),
+         "energy": ("uniform", "bump", "auto")}
 KEYS = ("max_displacement", "normal_force", "energy")
 #: -error_quantity -> summary key
 TARGET_KEYS = {"max_u": "max_displacement", "force": "normal_force", "energy": "energy"}
@@ -80,7 +89,8 @@ def main(argv=None):
              "values (" + ", ".join(f"{k} {v[0]:.8g}" for k, v in qstar.items()) + "); "
              "estimate = the run's own (summary.json error_estimate, from its levels); "
              "wall = whole process (mpirun included).", "",
-             "## Equal sizes: uniform, hand-graded (bump), -mesh_grading auto", "",
+             "## Equal sizes: uniform, hand-graded (bump), -mesh_grading auto (aimed at the "
+             "energy, at N: auto-force, at max |u|: auto-max_u)", "",
              "| element | Nd | mesh | dofs | wall, s | Newton | Krylov | max \\|u\\| error "
              "/ estimate | N error / estimate | J error / estimate |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -136,32 +146,35 @@ def main(argv=None):
 
 
 def plots(points, figdir, rel):
-    """Error against whole-process time per quantity (uniform, bump, auto), and the
-    auto-graded mesh of the largest run (its x-z grid lines from summary.json's points);
-    the markdown lines that show them."""
+    """Error against whole-process time per quantity (uniform, bump, and auto aimed at that
+    quantity: PANEL), and the meshes of the largest auto runs aimed at the energy and at N
+    (their x-z grid lines from summary.json's points); the markdown lines that show them."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
     os.makedirs(figdir, exist_ok=True)
     fig, axs = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
-    style = {"uniform": "o-", "bump": "s--", "auto": "^-"}
+    style = {"uniform": "o-", "bump": "s--"}
     for ax, key, words in zip(axs, KEYS, ("max |u|", "contact force N", "energy J")):
         for el in sorted({p[0] for p in points}):
-            for mesh in MESHES:
+            for mesh in PANEL[key]:
                 pts = [(p[2], p[3][key]) for p in points if p[0] == el and p[1] == mesh]
                 if pts:
                     t, e = zip(*pts)
-                    ax.loglog(t, e, style[mesh], label=f"{el} {mesh}")
+                    ax.loglog(t, e, style.get(mesh, "^-"),
+                              label=f"{el} {'auto, aimed' if mesh.startswith('auto') else mesh}")
         ax.set(xlabel="whole-process time, s", ylabel="relative error", title=words)
         ax.grid(True, which="both", alpha=0.3)
     axs[0].legend(fontsize=8)
     a = os.path.join(figdir, "adaptive_error_vs_time.png")
     fig.savefig(a, dpi=110)
     plt.close(fig)
-    autos = [p for p in points if p[1] == "auto"]
     out = [f"![error against time]({os.path.relpath(a, rel)})"]
-    if autos:
+    for mesh, name in (("auto", "adaptive_mesh.png"), ("auto-force", "adaptive_mesh_force.png")):
+        autos = [p for p in points if p[1] == mesh]
+        if not autos:
+            continue
         s = max(autos, key=lambda p: p[4]["dofs"])[4]
         g = s["grading"]["axes"]
         fig, ax = plt.subplots(figsize=(10, 3.8), constrained_layout=True)
@@ -172,12 +185,13 @@ def plots(points, figdir, rel):
                       np.linspace(0, 1, len(g["z"]["points"])), g["z"]["points"])
         ax.vlines(X, 0, 1, lw=0.4, color="k")
         ax.hlines(Z, 0, 3, lw=0.4, color="k")
+        aim = "the energy" if mesh == "auto" else "the contact force N"
         ax.set(aspect="equal", xlabel="x", ylabel="z", title=f"{s['element']} Nd = {s['nd']}, "
-               f"-mesh_grading auto: the beam's side (cells of the output mesh)")
-        b = os.path.join(figdir, "adaptive_mesh.png")
+               f"-mesh_grading auto aimed at {aim}: the beam's side (cells of the output mesh)")
+        b = os.path.join(figdir, name)
         fig.savefig(b, dpi=110)
         plt.close(fig)
-        out.append(f"![the auto-graded mesh]({os.path.relpath(b, rel)})")
+        out.append(f"![the auto-graded mesh, aimed at {aim}]({os.path.relpath(b, rel)})")
     return out
 
 

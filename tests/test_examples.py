@@ -301,15 +301,18 @@ def test_validate_incline(tmp_path):
 
 @pytest.mark.slow
 def test_adaptive(tmp_path):
-    """runs/adaptive.py at its smallest (q1, Nd = 16, one rank): the three meshes of one
+    """runs/adaptive.py at its smallest (q1, Nd = 16, one rank): the five meshes of one
     size, their true errors from the report's continuum values; the auto-graded beam's
-    energy error below the uniform box's."""
+    energy error below the uniform box's, the gradings aimed at N and at max |u| closer in
+    their own quantity than the energy's."""
     script("adaptive.py", "--smoke", "--out-dir", tmp_path)
     rows = {r[2]: r for r in table_rows(read(tmp_path / "adaptive.md"), "q1")}
-    assert set(rows) == {"uniform", "bump", "auto"}
+    assert set(rows) == {"uniform", "bump", "auto", "auto-force", "auto-max_u"}
     assert len({r[3] for r in rows.values()}) == 1                      # the same dofs
-    j = {m: float(r[9].split("%")[0]) for m, r in rows.items()}
+    u, n, j = ({m: float(r[c].split("%")[0]) for m, r in rows.items()} for c in (7, 8, 9))
     assert j["auto"] < j["uniform"] and j["bump"] < j["uniform"]
+    assert n["auto-force"] < n["auto"] and u["auto-max_u"] < u["auto"]
+    assert os.path.exists(tmp_path / "figures" / "adaptive_mesh_force.png")
 
 
 @pytest.mark.slow
