@@ -26,9 +26,10 @@ def _levels(nds, f):
                                        (3.4, "q2")])
 def test_exact_on_a_power_law(p, element):
     est = estimate.from_levels(_levels([4, 8, 16], lambda h: 2.0 + 5.0 * h ** p), element)
-    e = est["max_displacement"]
+    key, sign = ("energy", -1.0) if p > 2.5 and element == "q2" else ("max_displacement", 1.0)
+    e = est[key]                  # (q2's max |u|: orders up to 2.5, estimate.POINT_ORDERS)
     assert e["order"] == pytest.approx(p, rel=1e-9)
-    assert e["extrapolated"] == pytest.approx(2.0, rel=1e-12)
+    assert e["extrapolated"] == pytest.approx(2.0 * sign, rel=1e-12)
     assert e["error"] == pytest.approx(5.0 / 16 ** p, rel=1e-9)
     assert e["extrapolated_error"] is None                     # three levels: no second
     assert "normal_force" not in est                           # no contact value: no entry
@@ -46,10 +47,16 @@ def test_words_outside_the_asymptotic_range():
     assert fast["max_displacement"]["error"] is None              # Hertz's N at 2, 4, 8
     assert "order 3.75 outside 0.5 to 3 for q1" in fast["max_displacement"]["note"]
     assert estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.25),
+                                "q2")["energy"]["error"] is not None
+    point = estimate.from_levels(_levels([3, 6, 12], lambda h: 1.0 + h ** 2.88), "q2")
+    assert point["energy"]["error"] is not None          # the auto-graded beam's max |u|,
+    assert point["max_displacement"]["error"] is None    # q2 3, 6, 12: effectivity 0.13
+    assert "order 2.88 outside 0.5 to 2.5 for q2" in point["max_displacement"]["note"]
+    assert estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 1.5),
                                 "q2")["max_displacement"]["error"] is not None
     q2 = estimate.from_levels(_levels([2, 4, 8], lambda h: 1.0 + h ** 4.27), "q2")
-    assert q2["max_displacement"]["error"] is None    # the graded beam's max |u|, q2 2, 4, 8
-    assert "order 4.27 outside 0.5 to 3.5 for q2" in q2["max_displacement"]["note"]
+    assert q2["energy"]["error"] is None    # (the graded beam's max |u|, q2 2, 4, 8)
+    assert "order 4.27 outside 0.5 to 3.5 for q2" in q2["energy"]["note"]
     assert estimate.from_levels(_levels([8, 16], lambda h: h), "q1") is None
 
 
