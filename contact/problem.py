@@ -187,8 +187,8 @@ class ContactProblem:
             self._prolonged = transfer.prolong_displacement(
                 h.prolongation(self.level), coarse, self, coarse.x, self.x.duplicate())
         if estimating and coarse.dual is not None:       # P z_2h: the dual's indicator
-            self._prolonged_dual = goals.prolong(h.prolongation(self.level), coarse, self,
-                                                 coarse.dual)
+            self._prolonged_dual = transfer.prolong_field(h.prolongation(self.level), coarse,
+                                                          self, coarse.dual)
         if coarse.error_indicator is not None and h.kind == "box" and \
                 (self.goal is None or coarse.goal_parts is not None):
             #: the coarser level's indicator along each axis (estimate.slab_errors): with

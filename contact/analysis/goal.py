@@ -26,6 +26,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from contact.analysis import estimate, stress
 from contact.solvers import multigrid
 
 #: -error_quantity -> the dual solved here (energy: none)
@@ -116,17 +117,6 @@ def _point_load(problem, rhs):
     q.destroy()
 
 
-def prolong(P, coarse, fine, zc):
-    """P z_c on the fine level, in its basis (x, y, z through the frames). Collective."""
-    u = coarse.disc.to_xyz(zc)
-    zf = fine.x.duplicate()
-    P.mult(u, zf)
-    if u is not zc:
-        u.destroy()
-    fine.disc.to_frame(zf)
-    return zf
-
-
 def weighted(Du, Dz):
     """The cells' parts along x, y, z that the grading equidistributes for a quantity:
     sqrt(D_u D_z) (only their relative sizes count)."""
@@ -136,7 +126,6 @@ def weighted(Du, Dz):
 def dual_parts(problem, z, z0):
     """The dual indicator's parts D_z (local cells, 3): estimate.cell_parts of z - z0 (z0:
     the coarser level's P z_2h)."""
-    from contact.analysis import estimate, stress
     vals = []
     for v in (z, z0):
         w = problem.disc.to_xyz(v)

@@ -40,6 +40,19 @@ def prolong_displacement(P, coarse, fine, xc, xf):
     return xf
 
 
+def prolong_field(P, coarse, fine, vc):
+    """A new fine Vec: P v_c, a displacement-shaped field of the coarse problem's basis
+    (no lifting: a dual solution, analysis/goal.py) in the fine problem's basis, through
+    x, y, z where either has a contact frame. Collective."""
+    u = coarse.disc.to_xyz(vc)
+    vf = fine.x.duplicate()
+    P.mult(u, vf)
+    if u is not vc:
+        u.destroy()
+    fine.disc.to_frame(vf)
+    return vf
+
+
 def prolong_contact(P, coarse, fine, vc, vf):
     """vf <- the coarse contact-space Vec vc interpolated at the fine contact nodes (see the
     module docstring). Collective; returns vf."""
