@@ -141,9 +141,13 @@ class Split:
         mat = disc.scene["material"]
         self.lam_mu = lam / mu
         self.element = disc.element
+        #: the u-block smoothed by SOR (SOR_ELEMENTS; not with GPU Vecs: Chebyshev there,
+        #: and the rest as for bbar: with Chebyshev the lower factorisation took 830 Krylov
+        #: iterations against full's 201 on Hertz nd 3)
+        self.sor = self.element in SOR_ELEMENTS and not multigrid.gpu_vecs()
         #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
         #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
-        self.reuse_blocks = self.element in SOR_ELEMENTS
+        self.reuse_blocks = self.sor
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
@@ -199,7 +203,7 @@ class Split:
         smoothing and the u-block kept from step to step: half the time of full there."""
         return {"newton_ew_max": f"{min(EW_MAX, EW_LAMBDA / self.lam_mu):.3g}",
                 "newton_pc_fieldsplit_schur_fact_type":
-                    "lower" if self.element in SOR_ELEMENTS else "full"}
+                    "lower" if self.sor else "full"}
 
     def condensed(self):
         """A_g + Gq^T Cq^-1 R Gq = A_g + kappa Gq^T Gq as a new Mat (tests: it is A)."""
@@ -236,7 +240,7 @@ class Split:
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
             with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT,
-                                           sor=self.element in SOR_ELEMENTS)):
+                                           sor=self.sor)):
                 ku.setFromOptions()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):
