@@ -88,7 +88,7 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: multigrid with a kept preconditioner (reuse_blocks: its coarse LU factored once, not at
 #: every Newton step): Hertz q2p1 nu = 0.4999, 1 rank, nd 3: 108 -> 226 Krylov
 #: iterations, solve 25.4 -> 16.6 s; nd 2 63 -> 162, 11.3 -> 8.5 s (stability-notes.md,
-#: 2026-11-29; full + one sweep: 265, 29.6 s; Chebyshev + lower: 830, 34.9 s)
+#: "one V-cycle"; full + one sweep: 265, 29.6 s; Chebyshev + lower: 830, 34.9 s)
 SOR_ELEMENTS = ("q2p1",)
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
