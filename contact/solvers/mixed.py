@@ -143,7 +143,7 @@ class Split:
         self.element = disc.element
         #: the u-block smoothed by SOR (SOR_ELEMENTS; not with GPU Vecs: Chebyshev there,
         #: and the rest as for bbar: with Chebyshev the lower factorisation took 830 Krylov
-        #: iterations against full's 201 on Hertz nd 3)
+        #: iterations on Hertz nd 3, full's 261 before SOR)
         self.sor = self.element in SOR_ELEMENTS and not multigrid.gpu_vecs()
         #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
         #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
