@@ -163,6 +163,7 @@ class CoulombNewton(LinearCounts, Loop):
                              f"{self.linesearch_min}")
         if self.split is not None:                # the mixed u-p system (mixed.py)
             self.split.configure(self.ksp)
+            self.linear.reuse_blocks = self.split.reuse_blocks
             self.linear.setups += 1               # (A_g's preconditioner: set up there)
         else:
             with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",

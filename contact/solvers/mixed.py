@@ -20,8 +20,8 @@ then means what it means on K (measured: the condensed residual within 2x of the
 one; without the scaling GMRES stops with the constraint far off).
 
 The Newton iteration (coulomb.py) changes the contact rows of [A_g Gq^T] as it changes K's
-and solves the mixed system by GMRES with a Schur-complement fieldsplit (upper
-factorisation): on A_g one cycle of the geometric multigrid on the mesh hierarchy where
+and solves the mixed system by GMRES with a Schur-complement fieldsplit (full
+factorisation; q2p1: lower, Split.newton_defaults): on A_g one cycle of the geometric multigrid on the mesh hierarchy where
 there is one (multigrid.py, as for A; q2p1 always has one: its element mesh), else of
 GAMG; on the pressure the diagonal
 S_p = -Cq (1 + kappa / (lambda_g + 2 mu)) in place of S = -Cq - R Gq A_g^-1 Gq^T (a
@@ -82,7 +82,13 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: factorisation), Chebyshev -> SOR: nd 3, 1 rank, 261 -> 108 Krylov iterations, solve 60.3
 #: -> 42.0 s; 2 ranks 270 -> 104, 40.3 -> 26.5 s; nd 2, 1 rank 120 -> 63, 19.4 -> 16.2 s
 #: (2 ranks 11.5 -> 12.6 s: 6 Newton steps against 4); the beam, N = 4: 87 -> 72. Not bbar
-#: (Hertz nd 3, nu = 0.4999: 2.3 -> 2.5 s; the beam, Nd 8: 0.6 -> 0.8 s)
+#: (Hertz nd 3, nu = 0.4999: 2.3 -> 2.5 s; the beam, Nd 8: 0.6 -> 0.8 s). These elements
+#: also take the lower Schur factorisation (one u-block V-cycle a Krylov iteration, not
+#: full's two), one SOR sweep a smoothing (multigrid.SOR_SWEEPS) and keep the u-block's
+#: multigrid with a kept preconditioner (reuse_blocks: its coarse LU factored once, not at
+#: every Newton step): Hertz q2p1 nu = 0.4999, 1 rank, nd 3: 108 -> 226 Krylov
+#: iterations, solve 25.4 -> 16.6 s; nd 2 63 -> 162, 11.3 -> 8.5 s (stability-notes.md,
+#: "one V-cycle"; full + one sweep: 265, 29.6 s; Chebyshev + lower: 830, 34.9 s)
 SOR_ELEMENTS = ("q2p1",)
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
@@ -135,6 +141,13 @@ class Split:
         mat = disc.scene["material"]
         self.lam_mu = lam / mu
         self.element = disc.element
+        #: the u-block smoothed by SOR (SOR_ELEMENTS; not with GPU Vecs: Chebyshev there,
+        #: and the rest as for bbar: with Chebyshev the lower factorisation took 830 Krylov
+        #: iterations on Hertz nd 3, full's 261 before SOR)
+        self.sor = self.element in SOR_ELEMENTS and not multigrid.gpu_vecs()
+        #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
+        #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
+        self.reuse_blocks = self.sor
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
@@ -185,9 +198,12 @@ class Split:
         upper -> full 745 -> 528 (Hertz, bbar, nd = 3, nu = 0.4999), 509 -> 376 (beam,
         bbar, Nd = 8, 0.499999), 221 -> 119 (Hertz, q2p1, nd = 2, 0.4999), 114 -> 87 (beam,
         q2p1, N = 4, 0.4999), in about the same time; Hertz, bbar, nd = 3, nu = 0.499999:
-        converged in 6 steps where upper's second solve failed (1000 iterations)."""
+        converged in 6 steps where upper's second solve failed (1000 iterations). q2p1
+        (SOR_ELEMENTS): the lower factorisation, one u-block cycle, with SOR's cheaper
+        smoothing and the u-block kept from step to step: half the time of full there."""
         return {"newton_ew_max": f"{min(EW_MAX, EW_LAMBDA / self.lam_mu):.3g}",
-                "newton_pc_fieldsplit_schur_fact_type": "full"}
+                "newton_pc_fieldsplit_schur_fact_type":
+                    "lower" if self.sor else "full"}
 
     def condensed(self):
         """A_g + Gq^T Cq^-1 R Gq = A_g + kappa Gq^T Gq as a new Mat (tests: it is A)."""
@@ -224,7 +240,7 @@ class Split:
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
             with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT,
-                                           sor=self.element in SOR_ELEMENTS)):
+                                           sor=self.sor)):
                 ku.setFromOptions()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):

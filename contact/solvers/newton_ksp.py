@@ -58,6 +58,9 @@ class NewtonKSP:
         self.ksp.setTolerances(rtol=rtol, atol=atol, max_it=max_it)
         self.setups = 0            # preconditioner set-ups (fresh)
         self.iterations = 0        # Krylov iterations, every solve
+        #: whether a kept preconditioner keeps its fieldsplit's blocks' too (mixed.py,
+        #: Split.reuse_blocks): else a block whose Mat changed in place is set up anew
+        self.reuse_blocks = False
 
     @property
     def direct(self):
@@ -69,14 +72,21 @@ class NewtonKSP:
         earlier step; if that solve fails, build it afresh and solve again. on_setup():
         before each fresh build. Returns whether the (last) solve converged."""
         if reuse:
-            self.ksp.getPC().setReusePreconditioner(True)
+            self._reuse(True)
             if self.solve_again(b, x):
                 return True
-        self.ksp.getPC().setReusePreconditioner(False)
+        self._reuse(False)
         self.setups += 1
         if on_setup is not None:
             on_setup()
         return self.solve_again(b, x)
+
+    def _reuse(self, flag):
+        pc = self.ksp.getPC()
+        pc.setReusePreconditioner(flag)
+        if self.reuse_blocks and pc.getType() == PETSc.PC.Type.FIELDSPLIT:
+            for k in pc.getFieldSplitSubKSP():
+                k.getPC().setReusePreconditioner(flag)
 
     def solve_again(self, b, x):
         """x <- K^-1 b with the preconditioner as it is (e.g. to a tighter tolerance)."""
