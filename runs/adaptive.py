@@ -152,7 +152,6 @@ def plots(points, figdir, rel):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
     os.makedirs(figdir, exist_ok=True)
     fig, axs = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
     style = {"uniform": "o-", "bump": "s--"}
@@ -176,23 +175,33 @@ def plots(points, figdir, rel):
         if not autos:
             continue
         s = max(autos, key=lambda p: p[4]["dofs"])[4]
-        g = s["grading"]["axes"]
-        fig, ax = plt.subplots(figsize=(10, 3.8), constrained_layout=True)
-        n = s["nd"] * (2 if s["element"] in ("q2", "q2p1") else 1)   # output cells per 1
-        X = 3.0 * np.interp(np.linspace(0, 1, 3 * n + 1),
-                            np.linspace(0, 1, len(g["x"]["points"])), g["x"]["points"])
-        Z = np.interp(np.linspace(0, 1, n + 1),
-                      np.linspace(0, 1, len(g["z"]["points"])), g["z"]["points"])
-        ax.vlines(X, 0, 1, lw=0.4, color="k")
-        ax.hlines(Z, 0, 3, lw=0.4, color="k")
         aim = "the energy" if mesh == "auto" else "the contact force N"
-        ax.set(aspect="equal", xlabel="x", ylabel="z", title=f"{s['element']} Nd = {s['nd']}, "
-               f"-mesh_grading auto aimed at {aim}: the beam's side (cells of the output mesh)")
         b = os.path.join(figdir, name)
-        fig.savefig(b, dpi=110)
-        plt.close(fig)
+        draw_grading(s, b, f"{s['element']} Nd = {s['nd']}, -mesh_grading auto aimed at "
+                     f"{aim}: the beam's side (cells of the output mesh)")
         out.append(f"![the auto-graded mesh, aimed at {aim}]({os.path.relpath(b, rel)})")
     return out
+
+
+def draw_grading(s, path, title):
+    """The x-z grid lines of a graded beam run (summary.json `s`: its grading's points; the
+    cells of the output mesh, q2's nodes' mesh) to `path` (also runs/report.py's)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    g = s["grading"]["axes"]
+    fig, ax = plt.subplots(figsize=(10, 3.8), constrained_layout=True)
+    n = s["nd"] * (2 if s["element"] in ("q2", "q2p1") else 1)   # output cells per 1
+    X = 3.0 * np.interp(np.linspace(0, 1, 3 * n + 1),
+                        np.linspace(0, 1, len(g["x"]["points"])), g["x"]["points"])
+    Z = np.interp(np.linspace(0, 1, n + 1),
+                  np.linspace(0, 1, len(g["z"]["points"])), g["z"]["points"])
+    ax.vlines(X, 0, 1, lw=0.4, color="k")
+    ax.hlines(Z, 0, 3, lw=0.4, color="k")
+    ax.set(aspect="equal", xlabel="x", ylabel="z", title=title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ costs, and the solver's own error against its tolerance beside the paper's loops
     .venv/bin/python runs/report.py                 # everything (about 30 min from scratch)
     .venv/bin/python runs/report.py --nd 8 16       # other sizes of the tolerance sweeps
     .venv/bin/python runs/report.py --total-nd 4 8 16 32   # other sizes of the total error
+    .venv/bin/python runs/report.py --graded-nd 4 8 # other sizes of the graded meshes
     .venv/bin/python runs/report.py --quick         # smoke run: tiny sizes, 2 tolerances
     .venv/bin/python runs/report.py --force         # re-run cases whose results exist
     .venv/bin/python runs/report.py --smoke --out-dir DIR   # tests: Nd = 2, 1 tolerance
@@ -18,7 +19,10 @@ What it does:
      (contact/analysis/convergence.py); the cost (Nd, whole-process time) of 10 %, 1 %
      and 0.1 % in each; then the same with -element q2 (N = 1 .. 24), both elements
      against one continuum value per quantity (the extrapolation with the smaller error
-     estimate), with the plot of both;
+     estimate), with the plot of both; then q2 on meshes graded by the run
+     (-mesh_grading auto, aimed at each quantity: -error_quantity max_u, force, and the
+     energy's default; N = 4 .. 16) beside them on the same axes, with a picture of the
+     finest graded mesh;
   3. for each size Nd of the sweeps (6 and 12): two reference solutions at tolerance 1e-12
      from two different variants (SSN with an iterative linear solver, and APG with
      restart, or SSN with a direct solver where APG would be too slow), and how well they
@@ -55,6 +59,11 @@ LEVELS = (1e-1, 1e-2, 1e-3)                      # the accuracies whose cost is 
 TOTAL_NDS = [4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64, 80]
 #: the q2 element's sizes (N elements per unit: the unknowns of q1 at 2 N)
 Q2_NDS = [1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24]
+#: the sizes of q2 on meshes graded by the run (-mesh_grading auto), one study per quantity
+GRADED_NDS = [4, 6, 8, 10, 12, 16]
+#: each quantity's graded study: the -error_quantity it aims at (None: the default, the
+#: energy norm's indicator)
+AIMS = {"umax": "max_u", "force": "force", "energy": None}
 #: CalculiX C3D20R's max |u| on the paper's beam at N = 2, 4, 8 (issue 25's table)
 C3D20R = (4.4601e-4, 4.5274e-4, 4.5403e-4)
 
@@ -235,14 +244,21 @@ def sweep(nd, small, args, log, unavailable):
 TOTAL = "total"      # the directory prefix of the total-error runs
 
 
-def total_study(nds, args, log, element=None):
+def total_study(nds, args, log, element=None, aim=False):
     """The default solver as a user runs it (no option but -nd, and -element when given)
     on each Nd, on args.total_np ranks: whole-process wall time, and each quantity's total
     error (solver + discretisation) against its continuum value (convergence.continuum
-    over the runs). Returns {"rows", "limits", "costs", "np", "element"}."""
+    over the runs). aim: a quantity's key (AIMS), for the mesh graded by the run aimed at
+    it (-mesh_grading auto [-error_quantity Q]): no continuum value of its own (each mesh
+    graded by its own pilot: not one family). Returns {"rows", "limits", "costs", "np",
+    "element"[, "aim"]}."""
     rows = []
     tag = f"-{element}" if element else ""
     opts = ["-element", element] if element else []
+    if aim:
+        tag += f"-graded-{AIMS[aim] or 'energy'}"
+        opts += ["-mesh_grading", "auto"] + (["-error_quantity", AIMS[aim]] if AIMS[aim]
+                                             else [])
     for n in nds:
         r = harness.run_case(os.path.join(args.out_dir, f"{TOTAL}-np{args.total_np}{tag}-nd{n}"),
                              ["-nd", n] + opts, args.total_np, timeout=args.total_timeout,
@@ -251,6 +267,8 @@ def total_study(nds, args, log, element=None):
                "error": r.error if r.status == "failed" else None}
         if r.ok:
             s = r.summary
+            if aim:
+                row["summary"] = s                  # (its grading: the mesh's picture)
             row.update(dofs=s["dofs"], solve=s["time_s"]["solve"], setup=s["time_s"]["setup"],
                        newton=s["iterations"]["inner_total"],
                        residual=max(s["residuals"].values()), converged=s["converged"],
@@ -259,13 +277,15 @@ def total_study(nds, args, log, element=None):
         rows.append(row)
     ok = [r for r in rows if r["status"] == "ok"]
     limits = {}
-    if len(ok) >= 2:
+    if len(ok) >= 2 and not aim:
         for k, _, _ in QUANTITIES:
             L = convergence.continuum([r["nd"] for r in ok], [r["values"][k] for r in ok])
             L["relative_error"] = L["error"] / abs(L["value"])
             limits[k] = L
     tot = {"rows": rows, "limits": limits, "costs": {}, "np": args.total_np,
            "element": element or "q1"}
+    if aim:
+        tot.update(aim=aim, element=f"{element} graded")
     score(tot, limits)
     return tot
 
@@ -362,7 +382,9 @@ def plot_errors(nd, data, path):
 
 
 ELEMENT_STYLE = {"q1": ("k", "o", "default solver, q1 (the paper's element), one run per Nd"),
-                 "q2": ("C0", "s", "default solver, -element q2, one run per Nd")}
+                 "q2": ("C0", "s", "default solver, -element q2, one run per Nd"),
+                 "q2 graded": ("C3", "^", "-element q2 -mesh_grading auto, aimed at the "
+                                          "panel's quantity")}
 
 
 def plot_total(tot, path, others=()):
@@ -378,6 +400,8 @@ def plot_total(tot, path, others=()):
         L = tot["against"][k]
         y_all = []
         for study in (tot,) + tuple(others):
+            if study.get("aim", k) != k:          # a graded study: its own quantity's panel
+                continue
             ok = [r for r in study["rows"] if r["status"] == "ok" and "err" in r]
             col, mark, name = ELEMENT_STYLE[study.get("element", "q1")]
             x = [r["wall"] for r in ok]
@@ -407,7 +431,9 @@ def plot_total(tot, path, others=()):
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9,
                frameon=False)
     fig.suptitle("Paper's beam (F = 0.3): total error against whole-process time, the "
-                 "default solver" + (", q1 and q2" if others else "") + " (labels: Nd)",
+                 "default solver" + (", q1 and q2" if others else "")
+                 + (" uniform and q2 graded by the run" if any("aim" in o for o in others)
+                    else "") + " (labels: Nd)",
                  fontsize=11)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
@@ -456,7 +482,7 @@ def reading(nd, data):
     return out
 
 
-def write_md(sizes, tot, mr, args, times, unavailable, quad=None):
+def write_md(sizes, tot, mr, args, times, unavailable, quad=None, graded=()):
     L = ["# Error against run time: the default solver, its tolerance, and the total error",
          ""]
     L += harness.provenance_lines(1, make="report", argv=args.argv)
@@ -472,7 +498,9 @@ def write_md(sizes, tot, mr, args, times, unavailable, quad=None):
           f"`.venv/bin/python -m contact -nd N -output_dir runs/out/report/<case> <options>` "
           f"(the total-error runs under `mpirun -n {tot['np']}`).",
           ""]
-    L += total_md(tot) + (quadratic_md(*quad) if quad else []) + make_run_md(mr)
+    L += total_md(tot) + (quadratic_md(*quad) if quad else []) + (
+        graded_md(quad[0], quad[1], graded[0], graded[1]) if quad and graded else []) \
+        + make_run_md(mr)
     L += ["", "## The solver's own error against its tolerance", "",
           "The default solver first, then the paper's loops and their variants, each against "
           "a reference solution of the same mesh (no discretisation error here).", ""]
@@ -680,6 +708,8 @@ def cost_table(studies):
          "|---|" + ("---|" if many else "") + "---|" * len(LEVELS)]
     for k, name, _ in QUANTITIES:
         for tot in studies:
+            if tot.get("aim", k) != k:
+                continue
             cells = []
             Lk = tot["against"][k]
             for x in LEVELS:
@@ -756,6 +786,57 @@ def quadratic_md(q1, q2, own):
     return L
 
 
+def graded_md(q1, q2, graded, picture):
+    """Meshes graded by the run (q2, -mesh_grading auto aimed at each quantity) beside the
+    uniform q1 and q2 (all scored against the common continuum values)."""
+    rows = [r for g in graded for r in g["rows"] if r["status"] == "ok" and "err" in r]
+    if not rows:
+        return []
+    nds = ", ".join(str(r["nd"]) for r in graded[0]["rows"])
+    L = ["", "## Meshes graded by the run (-mesh_grading auto) beside the uniform ones", "",
+         f"q2 on the beam graded by the run's own error indicator (`mpirun -n "
+         f"{graded[0]['np']} python -m contact -nd N -element q2 -mesh_grading auto "
+         f"[-error_quantity Q]`: a pilot at N, then each axis's cells equidistributed, "
+         f"contact/adapt.py), aimed at each quantity: max |u| (`-error_quantity max_u`), "
+         f"the contact force N (`force`), the energy J (the default), N = {nds}; the "
+         f"time includes the pilot's. Errors against the same continuum values as above; "
+         f"each panel draws the grading aimed at its quantity.", "",
+         "![total error against whole-process time, uniform and graded]"
+         "(report/total_error_vs_time_graded.png)", ""]
+    L += cost_table([q1, q2] + list(graded))
+    names = dict((k, n) for k, n, _ in QUANTITIES)
+    rising = []                       # where a finer graded run is further off (own aim)
+    for g in graded:
+        ok = sorted((r["nd"], r["err"][g["aim"]]) for r in g["rows"]
+                    if r["status"] == "ok" and "err" in r)
+        rising += [f"{names[g['aim']]} at N = {a[0]} {lvl(a[1])}, N = {b[0]} {lvl(b[1])}"
+                   for a, b in zip(ok, ok[1:]) if b[1] > a[1]]
+    L += ["", "The continuum values stay the uniform sequences' (above): each graded mesh "
+          "is graded by its own pilot, so the graded runs are not one family refined "
+          "uniformly and give no Richardson triple. "
+          + (f"Their errors are not monotone in N ({'; '.join(rising)})."
+             if rising else "Their errors fall with N here.") + " " + "; ".join(
+              f"{name}: q* known to ± {lvl(q1['against'][k]['relative_error'])}"
+              for k, name, _ in QUANTITIES) + ".", ""]
+    if picture:
+        L += [f"![{picture[1]}](report/{os.path.basename(picture[0])})", ""]
+    L += ["| aimed at | N | dofs | whole process, s | Newton steps | max abs(u) | N | J | "
+          "error max abs(u) | error N | error J |", "|---|" + "---|" * 10]
+    for g in graded:
+        name = dict((k, n) for k, n, _ in QUANTITIES)[g["aim"]]
+        for r in g["rows"]:
+            if r["status"] != "ok":
+                L.append(f"| {md(name)} | {r['nd']} | {r['status']}: {r.get('error') or ''} |"
+                         + " – |" * 8)
+                continue
+            v, er = r["values"], r.get("err", {})
+            L.append(f"| {md(name)} | {r['nd']} | {r['dofs']} | {r['wall']:.2f} | "
+                     f"{r['newton']} | {v['umax']:.6e} | {v['force']:.6f} | "
+                     f"{v['energy']:.8e} | {e(er.get('umax'))} | {e(er.get('force'))} | "
+                     f"{e(er.get('energy'))} |")
+    return L
+
+
 def compare_elements(q1, q2):
     """Copies of the two studies scored against common_limits (one q* per quantity)."""
     import copy
@@ -820,6 +901,10 @@ def main(argv=None):
                     help="sizes of the same study with -element q2 (default "
                          f"{' '.join(map(str, Q2_NDS))}; --quick, --smoke: 1 2 3 4; none: "
                          "skip it)")
+    ap.add_argument("--graded-nd", type=int, nargs="*", default=None,
+                    help="sizes of q2 on meshes graded by the run, one study per quantity "
+                         f"(default {' '.join(map(str, GRADED_NDS))}; --quick, --smoke: 4; "
+                         "none: skip it)")
     ap.add_argument("--total-np", type=int, default=2,
                     help="MPI ranks of the total-error runs (default 2)")
     ap.add_argument("--total-timeout", type=int, default=900,
@@ -854,6 +939,8 @@ def main(argv=None):
         [2, 3, 4, 6, 8] if args.smoke or args.quick else TOTAL_NDS)
     q2_nds = args.q2_nd if args.q2_nd is not None else (
         [1, 2, 3, 4] if args.smoke or args.quick else Q2_NDS)
+    graded_nds = args.graded_nd if args.graded_nd is not None else (
+        [4] if args.smoke or args.quick else GRADED_NDS)
     if args.smoke:
         args.total_np = 1
     t0 = time.perf_counter()
@@ -915,22 +1002,52 @@ def main(argv=None):
             quad = (a, b, q2["limits"])
             plot_total(a, os.path.join(results, "total_error_vs_time_elements.png"), [b])
             log(f"wrote {os.path.join(results, 'total_error_vs_time_elements.png')}")
+    graded = ()
+    if graded_nds and quad:
+        studies = []
+        for k in AIMS:
+            log(f"== total error, -element q2 -mesh_grading auto aimed at {k}, "
+                f"Nd = {' '.join(map(str, graded_nds))}")
+            g = total_study(sorted(graded_nds), args, log, element="q2", aim=k)
+            score(g, quad[0]["against"])
+            studies.append(g)
+        plot_total(quad[0], os.path.join(results, "total_error_vs_time_graded.png"),
+                   [quad[1]] + studies)
+        log(f"wrote {os.path.join(results, 'total_error_vs_time_graded.png')}")
+        graded = (studies, picture(studies[0], results))
 
     elapsed = time.perf_counter() - t0
     cases = [c for d in sizes.values() for c in d["refs"] + [x for v in d["sweeps"].values()
                                                             for x in v]] + tot["rows"] + (
-        quad[1]["rows"] if quad else [])
+        quad[1]["rows"] if quad else []) + [r for g in (graded[0] if graded else ())
+                                            for r in g["rows"]]
     scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time + sum(
         sum(x["walls"]) for x in (mr or {}).values())
-    write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable, quad)
+    write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable, quad, graded)
     save_data(sizes, tot, mr, elapsed, os.path.join(results, "data.json"),
-              quad[1] if quad else None)
+              quad[1] if quad else None, graded[0] if graded else ())
     log(f"wrote {args.record} (this run {elapsed / 60:.1f} min; from scratch "
         f"{scratch / 60:.1f} min)")
     return 0
 
 
-def save_data(sizes, tot, mr, elapsed, path, q2=None):
+def picture(study, results):
+    """The mesh of the finest run of a graded study (its x-z grid lines, adaptive.py's
+    draw_grading): (path, caption), or None."""
+    ok = [r for r in study["rows"] if r["status"] == "ok"]
+    if not ok:
+        return None
+    from adaptive import draw_grading               # (runs/, beside this script)
+    r = max(ok, key=lambda r: r["nd"])
+    name = dict((k, n) for k, n, _ in QUANTITIES)[study["aim"]]
+    caption = (f"q2 N = {r['nd']}, -mesh_grading auto aimed at {name}: the beam's side "
+               f"(cells of the output mesh)")
+    path = os.path.join(results, "graded_mesh.png")
+    draw_grading(r["summary"], path, caption)
+    return path, caption
+
+
+def save_data(sizes, tot, mr, elapsed, path, q2=None, graded=()):
     """The numbers behind the report (no arrays), for later comparison."""
     def strip(c):
         keep = ("name", "status", "tol", "time", "err", "opts", "why", "error", "label")
@@ -942,6 +1059,8 @@ def save_data(sizes, tot, mr, elapsed, path, q2=None):
         return d
     data = {"date": harness.provenance()["date"], "elapsed_s": elapsed, "total": tot,
             "total_q2": q2,
+            "graded": [dict(g, rows=[{k: v for k, v in r.items() if k != "summary"}
+                                     for r in g["rows"]]) for g in graded],
             "make_run": mr,
             "sizes": {nd: {"dofs": d["dofs"], "agreement": d["agreement"],
                            "refs": [strip(r) for r in d["refs"]],
