@@ -820,17 +820,17 @@ def graded_md(q1, q2, graded, picture):
               for k, name, _ in QUANTITIES) + ".", ""]
     if picture:
         L += [f"![{picture[1]}](report/{os.path.basename(picture[0])})", ""]
-    L += ["| aimed at | N | dofs | whole process, s | Newton steps | max abs(u) | N | J | "
-          "error max abs(u) | error N | error J |", "|---|" + "---|" * 10]
+    L += ["| N | -error_quantity | dofs | whole process, s | Newton steps | max abs(u) | N | "
+          "J | error max abs(u) | error N | error J |", "|---|" + "---|" * 10]
     for g in graded:
-        name = dict((k, n) for k, n, _ in QUANTITIES)[g["aim"]]
+        name = AIMS[g["aim"]] or "energy (default)"
         for r in g["rows"]:
             if r["status"] != "ok":
-                L.append(f"| {md(name)} | {r['nd']} | {r['status']}: {r.get('error') or ''} |"
+                L.append(f"| {r['nd']} | {name} | {r['status']}: {r.get('error') or ''} |"
                          + " – |" * 8)
                 continue
             v, er = r["values"], r.get("err", {})
-            L.append(f"| {md(name)} | {r['nd']} | {r['dofs']} | {r['wall']:.2f} | "
+            L.append(f"| {r['nd']} | {name} | {r['dofs']} | {r['wall']:.2f} | "
                      f"{r['newton']} | {v['umax']:.6e} | {v['force']:.6f} | "
                      f"{v['energy']:.8e} | {e(er.get('umax'))} | {e(er.get('force'))} | "
                      f"{e(er.get('energy'))} |")

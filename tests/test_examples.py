@@ -193,9 +193,20 @@ def test_report(tmp_path):
     J2 = [float(q2[n][0][10]) for n in (1, 2, 3, 4)]
     assert all(a > b for a, b in zip(J2, J2[1:]))
     assert J2[1] < J[2] and J2[3] < J[4]
+    quad, _, graded = quad.partition("## Meshes graded by the run")
     assert [r[1] for r in table_rows(quad, "energy J") if len(r) == 5] == ["q1", "q2"]
+    # q2 graded by the run at N = 4, aimed at each quantity: q2's unknowns at N = 4, and
+    # the grading aimed at the energy lowers J below the uniform q2's at the same unknowns
+    # (J falls towards its continuum value: independent of the report's extrapolation)
+    rows = {r[1]: r for r in table_rows(graded, 4) if len(r) == 11}
+    assert set(rows) == {"max_u", "force", "energy (default)"}, rows
+    assert all(int(r[2]) == n_p(8) for r in rows.values())
+    assert float(rows["energy (default)"][7]) < J2[3]
+    assert [r[1] for r in table_rows(graded, "energy J") if len(r) == 5] == \
+        ["q1", "q2", "q2 graded"]
     for f in ("error_vs_time_nd2.png", "total_error_vs_time.png",
-              "total_error_vs_time_elements.png", "data.json"):
+              "total_error_vs_time_elements.png", "total_error_vs_time_graded.png",
+              "graded_mesh.png", "data.json"):
         assert os.path.getsize(tmp_path / "report" / f) > 0
     data = json.loads(read(tmp_path / "report" / "data.json"))
     assert data["sizes"]["2"]["agreement"]["u"] < 1e-8
