@@ -22,6 +22,12 @@ auto`, or every body's with -mesh_grading auto) from the indicator on its own ce
 slabs those of its box (a curved lower_surface moves z, not the slabs); no local orders
 (the element's).
 
+A gmsh or file mesh that is a tensor-product hexahedral mesh of a box (gmsh's extruded
+layers or transfinite volumes: mesh/grading.py lattice_planes; refused otherwise) grades as
+a box, its lattice the file's planes (refined with -mesh_refine): the pilot is the mesh
+itself (the file has no coarser copy), and the points re-place those planes along each
+axis, the file's own spacing there replaced.
+
 With -error_target (cli.py) there is no pilot after the first run: each run's grading
 comes from the indicator of the run before it (`design(scene, problem)`), so the grading
 follows the singularities as the mesh grows.
@@ -46,7 +52,8 @@ def axes(sc):
     every axis with -mesh_grading auto), or for a scene with bodies (mesh type bodies,
     q1) the pairs [(body, axis), ...] of the bodies' own auto gradings (every body's every
     axis with -mesh_grading auto); none with -mesh_grading uniform (the scene's gradings
-    dropped) or on a mesh file."""
+    dropped). A gmsh or file mesh's axes as a box's (a tensor-product mesh of a box:
+    mesh/grading.py place_lattice; its pilot is the mesh itself)."""
     how = options.get("mesh_grading")
     if how not in ("scene", "auto", "uniform"):
         raise ValueError(f"-mesh_grading must be scene, auto or uniform, got {how!r}")
@@ -66,12 +73,7 @@ def axes(sc):
         if auto and mesh.get("element", "q1") != "q1":
             raise ValueError(f"mesh.grading auto on bodies is for q1 (for now), not "
                              f"{mesh['element']}")
-    elif kind != "box":
-        if how == "auto" or scene_grading.auto_axes(mesh):
-            raise ValueError(f"mesh.grading auto needs a box mesh or bodies, not a "
-                             f"{kind} mesh")
-        return []
-    else:
+    else:                   # a box, or a gmsh or file mesh (a box's lattice: hierarchy.py)
         auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
     if auto:
         goal()                          # (-error_quantity checked before any solve)
@@ -99,14 +101,16 @@ def design(sc, solved, auto):
     for key, box, counts, i, slabs, coarse in _targets(mesh, solved, auto):
         g = box.get("grading")
         g = box["grading"] = {} if not isinstance(g, dict) else g
-        lo, hi = np.asarray(box["lower"], float), np.asarray(box["upper"], float)
         edges, E = slabs
         if coarse is not None and 2 * coarse.size != E.size:
             coarse = None
-        cells = counts[i] * mesh["nd"] * refined * (2 if order == 2 else 1)
+        # a gmsh or file mesh (counts None): the pilot's planes are the run's own
+        cells = edges.size - 1 if counts is None else \
+            counts[i] * mesh["nd"] * refined * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
-        h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (hi[i] - lo[i])
+        h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (
+            edges[-1] - edges[0])
         info[key] = {"points": g[grading.AXES[i]]["points"], "smallest": float(h.min()),
                      "largest": float(h.max()), "from_nd": solved.nd}
     return out, info
@@ -120,10 +124,11 @@ def _targets(mesh, solved, auto):
     through mesh/bodies.py's map without lower_surface: the slabs of a curved lower face
     are those of its box); no coarser level's (local orders: the element's)."""
     if mesh.get("type", "box") != "bodies":
+        counts = mesh["cells_per_nd"] if mesh.get("type", "box") == "box" else None
         for a in auto:
             i = grading.AXES.index(a)
             coarse = solved.coarse_slabs[i][1] if solved.coarse_slabs is not None else None
-            yield a, mesh, mesh["cells_per_nd"], i, estimate.slab_errors(solved, i), coarse
+            yield a, mesh, counts, i, estimate.slab_errors(solved, i), coarse
         return
     disc, names, places = solved.disc, list(mesh["bodies"]), {}
     for name, a in auto:
@@ -152,6 +157,11 @@ def pilot_scene(sc, auto):
     out = copy.deepcopy(sc)
     mesh = out["mesh"]
     div = options.get("mesh_grading_pilot")
+    if mesh.get("type", "box") in ("gmsh", "file"):   # its lattice is the file's: no coarser
+        if div not in (None, 1):                       # copy of it to solve
+            raise ValueError(f"-mesh_grading_pilot {div}: a gmsh or file mesh's pilot is "
+                             f"the mesh itself (-mesh_grading_pilot 1)")
+        div = 1
     if div is None:                   # q2's pilot at Nd / 2 sees too few slabs to place its
         div = 1 if element_of(sc) in QUADRATIC else 2     # cells (adaptive.md)
     if div < 1 or mesh["nd"] // div < 1:

@@ -123,11 +123,11 @@ REGISTRY = [
     Option("mesh_refine_dmplex", False, bool, "on one process too, refine with DMPlex's "
            "DMRefine (it builds every face and edge; default there: the same refinement in "
            "NumPy, contact/mesh/refine.py)", "BOOL"),
-    Option("mesh_grading", "scene", str, "boxes and box bodies: auto: every axis graded "
-           "where the error is, from the error indicator of a pilot at Nd / -mesh_grading_"
-           "pilot (contact/adapt.py); uniform: the gradings dropped", "scene|auto|uniform"),
+    Option("mesh_grading", "scene", str, "boxes, box bodies, lattice gmsh/file meshes: auto: "
+           "each axis graded where the error is, by a pilot's error indicator (Nd / -mesh_"
+           "grading_pilot; contact/adapt.py); uniform: the gradings dropped", "scene|auto|uniform"),
     Option("mesh_grading_pilot", None, int, "mesh.grading auto: the pilot's Nd is Nd / M "
-           "(default 2 for q1, 1 for q2: runs/results/adaptive.md)", "M"),
+           "(default 2 for q1, 1 for q2 and gmsh/file meshes: runs/results/adaptive.md)", "M"),
     Option("mesh_grading_max_ratio", 30.0, float, "mesh.grading auto: the largest ratio of "
            "cell sizes along an axis", "R"),
     Option("assembly_stencil", True, bool, "a box of identical cells on one process: the "

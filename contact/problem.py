@@ -189,7 +189,7 @@ class ContactProblem:
         if estimating and coarse.dual is not None:       # P z_2h: the dual's indicator
             self._prolonged_dual = transfer.prolong_field(h.prolongation(self.level), coarse,
                                                           self, coarse.dual)
-        if coarse.error_indicator is not None and h.kind == "box" and \
+        if coarse.error_indicator is not None and h.kind in ("box", "gmsh", "file") and \
                 (self.goal is None or coarse.goal_parts is not None):
             #: the coarser level's indicator along each axis (estimate.slab_errors): with
             #: this level's, the local orders of contact/adapt.py's grading

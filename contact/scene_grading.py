@@ -7,6 +7,8 @@
     grading: {x: auto, z: {bump: 0.2}}                    x from the indicator, z fixed
 
 `-mesh_grading auto` makes every axis auto from the command line (options.py).
+A gmsh or file mesh takes a grading too where it is a tensor-product hexahedral mesh of a
+box (mesh/grading.py place_lattice: its planes re-placed; refused otherwise).
 """
 from contact import scene as _scene     # (read when called: scene.py imports this first)
 
@@ -20,8 +22,8 @@ def check(mesh, where="mesh.grading", auto=True):
     as floats), or a SceneError naming the first bad value. auto: whether `auto` is
     allowed."""
     SceneError, shown = _scene.SceneError, _scene._shown
-    if mesh["type"] != "box":
-        raise SceneError(f"{where} needs a box mesh (mesh.type: box), not {mesh['type']!r}")
+    if mesh["type"] not in ("box", "gmsh", "file"):
+        raise SceneError(f"{where} needs a box, gmsh or file mesh, not {mesh['type']!r}")
     g = mesh["grading"]
     if g == AUTO or (isinstance(g, dict) and AUTO in g.values()):
         if not auto:

@@ -181,6 +181,48 @@ def place(level, cells, lower, upper, grading=None):
     level.dm.setCoordinatesLocal(v)                  # drops the global copy, if one was made
 
 
+def lattice_planes(coords, vertices, comm):
+    """A gmsh or file mesh graded (mesh.grading): per axis the planes (sorted, every
+    rank's) of its vertices `coords` (local, (n, 3)), which must be the whole lattice of
+    those planes (`vertices`, the global count, their product: a tensor-product hexahedral
+    mesh of a box, as gmsh's extruded layers and transfinite volumes give); MeshError
+    otherwise, naming the counts."""
+    mpi = comm.tompi4py()
+    planes = []
+    for a in range(3):
+        x = np.unique(np.concatenate(mpi.allgather(np.unique(coords[:, a]))))
+        span = x[-1] - x[0] if x.size else 0.0
+        planes.append(x[np.concatenate([[True], np.diff(x) > 1e-9 * span])])
+    counts = [p.size for p in planes]
+    if int(np.prod(counts)) != vertices:
+        raise MeshError(f"mesh.grading on a gmsh or file mesh needs a tensor-product "
+                        f"hexahedral mesh of a box (its vertices on a lattice of planes); "
+                        f"this one has {vertices} vertices on {' x '.join(map(str, counts))} "
+                        f"planes")
+    return planes
+
+
+def place_lattice(level, planes, grading):
+    """A level of a gmsh or file mesh graded: along each graded axis a vertex at s, its
+    place among the coarse mesh's `planes` (lattice_planes) as a fraction of their count
+    (linear between planes: a refined vertex's s is its parents' mean, as on a box's
+    lattice), moves to lower + phi(s) (upper - lower): the file's own spacing along that
+    axis is replaced by the grading's. level.reference keeps the file's places (the
+    refinement and the prolongation's search, as for a graded box)."""
+    x = level.reference
+    out = np.array(x, dtype=float, copy=True)
+    for axis, spec in grading.items():
+        (kind, value), = spec.items()
+        i = AXES.index(axis)
+        p = planes[i]
+        t = np.interp(x[:, i], p, np.linspace(0.0, 1.0, p.size))
+        out[:, i] = np.where(t >= 1.0, p[-1], p[0] + MAPS[kind](t, value) * (p[-1] - p[0]))
+    level.coords, level.lattice = out, None
+    v = level.dm.getCoordinatesLocal().duplicate()   # (DMRefine's mesh shares the DM's)
+    v.setArray(out.ravel())
+    level.dm.setCoordinatesLocal(v)
+
+
 def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
     """On mapped levels (a graded box, bodies with a lower_surface): the place in [-1, 1]^3
     of fine vertices x (n, 3) in their parent cells Xp (n, 8, 3, HEX_REF order), the

@@ -34,7 +34,9 @@ cells 8 p .. 8 p + 7 of coarse cell p, checked), so each row holds 1, 2, 4 or 8 
 the parent's vertices. It is assembled from local data only (no array of global size).
 A graded box (mesh.grading, grading.py): level j's vertices are phi of its lattice (kept in
 Level.reference, where fine vertices are found in their parents); P's weights are the parent's
-trilinear functions at the graded place, so the graded levels' Q1 spaces stay nested.
+trilinear functions at the graded place, so the graded levels' Q1 spaces stay nested. A
+graded gmsh or file mesh (a tensor-product mesh of a box): the same, its lattice the coarse
+mesh's planes (grading.place_lattice).
 """
 import numpy as np
 from mpi4py import MPI
@@ -46,7 +48,7 @@ from contact.mesh.cad import snap as snap_cad
 from contact.mesh.bodies import create_mesh as create_bodies, mapped, read as read_body
 from contact.mesh.bodies import place as place_bodies
 from contact.mesh.labels import copy_cell_labels, mark_surfaces, surface_masks
-from contact.mesh.grading import local_coordinates, place
+from contact.mesh.grading import lattice_planes, local_coordinates, place, place_lattice
 from contact.mesh.refine import refine as refine_serial
 
 #: the automatic k keeps at least this many coarse cells per rank
@@ -148,10 +150,20 @@ class MeshHierarchy:
         place_ = lambda lv: place(lv, [c * lv.nd for c in per], m["lower"],  # noqa: E731
                                   m["upper"], grading) if self.kind == "box" else \
             place_bodies(lv, m["bodies"])     # bodies.py: lattices, grading, lower_surface
+        planes = []                           # a graded gmsh or file mesh: its lattice's
+
+        def place_file(lv):
+            if grading and self.kind in ("gmsh", "file"):
+                if grading == "auto" or "auto" in grading.values():
+                    raise MeshError("mesh.grading auto is chosen by the command line's run "
+                                    "(contact/adapt.py), not by the mesh")
+                planes[:] = planes or lattice_planes(lv.reference, lv.n_dofs // 3, comm)
+                place_lattice(lv, planes, grading)
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))
             if self.kind == "box" and grading or self.kind == "bodies" and mapped(m["bodies"]):
                 place_(self.levels[0])
+            place_file(self.levels[0])
             return
         if comm.getSize() == 1 and not dmplex:      # refine.py: no faces or edges built
             for j in range(k + 1):
@@ -160,6 +172,7 @@ class MeshHierarchy:
                     place_(lv)
                 if j and self.cad:               # refined: on the CAD (a curved .geo)
                     snap_cad(self.levels[-1], lv, self.cad)
+                place_file(lv)
                 self.levels.append(lv)
                 dm = refine_serial(lv.dm, lv.conn, lv.reference) if j < k else None
             return
@@ -176,6 +189,7 @@ class MeshHierarchy:
                 (surface_masks if j else mark_surfaces)(dm, lv.dm)     # groups' faces
             if j and self.cad:
                 snap_cad(self.levels[-1], lv, self.cad)
+            place_file(lv)
             self.levels.append(lv)
         dm.destroy()
 

@@ -15,7 +15,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem, options, scene as scenes
-from contact.mesh import Q2_REF, grading
+from contact.mesh import Q2_REF, MeshError, grading
 from contact.mesh.hierarchy import MeshHierarchy
 from contact.solvers import residuals as res
 from contact.validation import independent as ind
@@ -218,11 +218,73 @@ def test_bad_grading(bad, message):
     assert message in str(e.value)
 
 
-def test_grading_needs_a_box():
-    sc = paper_scene(nd=2)
-    sc["mesh"].update(type="gmsh", file="beam.geo", grading={"x": {"bump": 0.1}})
-    with pytest.raises(scenes.SceneError, match=r"mesh.grading needs a box mesh .*'gmsh'"):
-        scenes.validate(sc)
+def _gmsh_beam(nd, element=None, **axes):
+    """meshes/beam.geo (3 nd x nd x nd equal cubes: the box's cells) as the paper's beam,
+    its parts the .geo's physical groups, graded by `axes`."""
+    sc = paper_scene(nd=nd, mode="newton")
+    sc["mesh"] = {"type": "gmsh", "file": f"{ROOT}/meshes/beam.geo", "nd": nd,
+                  "grading": axes, **({"element": element} if element else {})}
+    sc["boundary"] = {"clamped": {"physical": "clamped", "type": "dirichlet"},
+                      "contact": {"physical": "contact", "type": "contact"},
+                      "end": {"physical": "end", "type": "traction",
+                              "traction": [10.0, 0.0, 20.0]},
+                      "top": {"physical": "top", "type": "traction",
+                              "traction": [0.0, 0.0, -30.0]}}
+    return scenes.validate(sc)
+
+
+@pytest.mark.parametrize("element", [None, "q2"], ids=["q1", "q2"])
+def test_gmsh_lattice_graded_as_the_box(element):
+    """A gmsh mesh that is a box's lattice (beam.geo: its planes those of the box mesh)
+    graded along x and z (grading.place_lattice: its planes re-placed by phi) is the graded
+    box, refined once (-mesh_refine 1): the same vertices (1e-12) and the same answer
+    (1e-9) on every rank count; the uniform file (no grading) is not (the test's own
+    check that the grading moved something)."""
+    axes = {"x": {"bump": 0.1}, "z": {"progression": 3.0}}
+    with options.inserted({"mesh_refine": "1"}):
+        g = solve(_gmsh_beam(2, element, **axes))
+        b = solve(beam(4, element, **axes))
+        u = solve(_gmsh_beam(2, element))
+    (Xg, ug), (Xb, ub), (Xu, _) = (gather(p)[:2] for p in (g, b, u))
+    assert Xg.shape == Xb.shape and np.abs(Xg - Xb).max() < 1e-12
+    assert rel_err(ug, ub) < 1e-9
+    assert res.energy(g) == pytest.approx(res.energy(b), rel=1e-10)
+    assert np.abs(Xu - Xb).max() > 0.05
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial-only test (writes a file)")
+def test_mesh_file_lattice_graded_as_the_box(tmp_path):
+    """The same through a mesh file PETSc reads (mesh.type file: beam.geo meshed and
+    written as .msh by gmsh here, plane parts): the graded box's answer (1e-9)."""
+    import gmsh
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.open(f"{ROOT}/meshes/beam.geo")
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+    gmsh.write(str(tmp_path / "beam.msh"))
+    gmsh.finalize()
+    axes = {"x": {"bump": 0.1}, "z": {"progression": 3.0}}
+    sc = paper_scene(nd=2, mode="newton")
+    sc["mesh"] = {"type": "file", "file": str(tmp_path / "beam.msh"), "grading": axes}
+    with options.inserted({"mesh_refine": "1"}):
+        f = solve(scenes.validate(sc))
+        b = solve(beam(4, **axes))
+    assert rel_err(gather(f)[1], gather(b)[1]) < 1e-9
+
+
+def test_gmsh_mesh_not_a_lattice_is_refused():
+    """A gmsh mesh with a curved face (meshes/ball.geo: its vertices on no lattice of
+    planes) cannot take a grading: one MeshError naming the counts."""
+    sc = {"name": "ball", "mesh": {"type": "gmsh", "file": f"{ROOT}/meshes/ball.geo",
+                                   "nd": 1, "grading": {"z": {"progression": 2.0}}},
+          "material": {"young": 1.0, "poisson": 0.3},
+          "boundary": {"contact": {"physical": "contact", "type": "contact"},
+                       "top": {"physical": "top", "type": "dirichlet",
+                               "displacement": [0.0, 0.0, -0.01]}}}
+    with pytest.raises(MeshError, match=r"needs a tensor-product hexahedral mesh of a box"
+                                        r" .* 245 vertices on \d+ x \d+ x \d+ planes"):
+        MeshHierarchy(scenes.validate(sc), PETSc.COMM_WORLD)
 
 
 def test_grading_from_the_command_line():
