@@ -437,7 +437,7 @@ def plot_total(tot, path, others=()):
                  + (" uniform and q2 graded by the run" if any("aim" in o for o in others)
                     else "") + " (labels: Nd)",
                  fontsize=11)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.06 * rows, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
