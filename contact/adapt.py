@@ -83,10 +83,11 @@ def axes(sc):
     return auto
 
 
-def design(sc, solved, auto):
+def design(sc, solved, auto, finer=1):
     """A copy of scene `sc` whose `auto` axes (axes(): a box's, or (body, axis) pairs) are
     graded by the indicator of the solved problem `solved` (the same box or bodies), and
-    the words for the summary (keyed "x" on a box, "body.x" on bodies)."""
+    the words for the summary (keyed "x" on a box, "body.x" on bodies). finer: a gmsh or
+    file mesh's run is refined once more than `solved` (2; -error_target), or not (1)."""
     if solved.error_indicator is None:
         raise ValueError(f"mesh.grading auto: the solve at Nd = {solved.nd} has no coarser "
                          "level, so no error indicator (a larger -nd, or -c2f_levels >= 1)")
@@ -105,7 +106,7 @@ def design(sc, solved, auto):
         if coarse is not None and 2 * coarse.size != E.size:
             coarse = None
         # a gmsh or file mesh (counts None): the pilot's planes are the run's own
-        cells = edges.size - 1 if counts is None else \
+        cells = finer * (edges.size - 1) if counts is None else \
             counts[i] * mesh["nd"] * refined * (2 if order == 2 else 1)
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
@@ -184,16 +185,17 @@ def pilot_scene(sc, auto):
     return out
 
 
-def graded_scene(sc, comm, auto, solved=None):
+def graded_scene(sc, comm, auto, solved=None, finer=1):
     """(scene, info): `sc` with its `auto` axes graded from the indicator of `solved` (a
     pilot solved first, and released, where solved is None); info for summary.json's
-    `grading`. The caller builds the ContactProblem once `solved` is released."""
+    `grading` (finer: design's). The caller builds the ContactProblem once `solved` is
+    released."""
     t0, pilot_time = time.perf_counter(), None
     if solved is None:       # two levels below the pilot where Nd has them: its indicator
         with options.inserted({"c2f_levels": "2"}):         # and each slab's local order
             solved = ContactProblem(pilot_scene(sc, auto), comm, goal=goal()).solve()
         pilot_time = time.perf_counter() - t0
-    scene, info = design(sc, solved, auto)
+    scene, info = design(sc, solved, auto, finer)
     nd, el = solved.nd, solved.element
     del solved
     gc.collect()

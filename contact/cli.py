@@ -1,4 +1,5 @@
 """Command line: python -m contact [options]; -help lists them (contact/options.py)."""
+import contextlib
 import copy
 import os
 import re
@@ -89,28 +90,39 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     its coarser levels first; -error_refine graded: each run after the first graded along
     every axis the scene does not grade itself, from the run before's error indicator,
     contact/adapt.py) until the estimated relative error of -error_quantity is at most
-    `target`. Returns (last problem, its summary with `error_target`, the reason it stopped
-    short or None)."""
+    `target`. A gmsh or file mesh: the file refined K, K + 1, ... times (-mesh_refine K,
+    at least 2: three levels to estimate from; every level solved), graded where it is a
+    box's lattice (adapt.py). Returns (last problem, its summary with `error_target`, the
+    reason it stopped short or None)."""
     quantity, refine = options.get("error_quantity"), options.get("error_refine")
     if quantity not in TARGET_KEYS:
         raise ValueError(f"-error_quantity must be one of {', '.join(TARGET_KEYS)}, got "
                          f"{quantity!r}")
     if refine not in ("graded", "uniform"):
         raise ValueError(f"-error_refine must be graded or uniform, got {refine!r}")
-    if not (0.0 < target < 1.0) or sc["mesh"].get("type", "box") != "box":
-        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box mesh (Nd doubles), got "
-                         f"{target:g} and a {sc['mesh'].get('type')} mesh")
+    kind = sc["mesh"].get("type", "box")
+    if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file"):
+        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh "
+                         f"(Nd or -mesh_refine grows), got {target:g} and a {kind} mesh")
     key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
     fixed = sc["mesh"].get("grading") if isinstance(sc["mesh"].get("grading"), dict) else {}
     grade = auto or ([a for a in "xyz" if a not in fixed] if refine == "graded" else [])
     history, failure, info = [], None, None
+    # a file's run k: refined k times, every level solved (-c2f_levels, unless given)
+    k = max(options.get("mesh_refine"), 2) if kind != "box" else None
+    c2f = PETSc.Options().hasName("c2f_levels")
+    levels = (lambda: options.inserted({"mesh_refine": str(k), **(  # noqa: E731
+        {} if c2f else {"c2f_levels": str(k)})})) if k is not None else contextlib.nullcontext
     if auto:
-        sc, info = adapt.graded_scene(sc, comm, auto)
+        with levels():
+            sc, info = adapt.graded_scene(sc, comm, auto)
     while True:
-        problem = ContactProblem(copy.deepcopy(sc), comm, goal=adapt.goal() if grade else None)
-        problem.grading_info = info
-        problem.skipped += skipped
-        problem.solve()
+        with levels():
+            problem = ContactProblem(copy.deepcopy(sc), comm,
+                                     goal=adapt.goal() if grade else None)
+            problem.grading_info = info
+            problem.skipped += skipped
+            problem.solve()
         _skipped_formats(problem, formats)
         s = report.summary(problem, time.perf_counter() - t0)
         e = (s["error_estimate"] or {}).get(key)
@@ -131,15 +143,19 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
             failure = s["error_estimate_note"]       # no levels to estimate from, ever
             break
         nxt = resources.dofs(dict(sc, mesh=dict(sc["mesh"], nd=2 * problem.nd)),
-                             problem.element)
+                             problem.element) if k is None else 8 * s["dofs"]  # (about)
         if nxt > limit:
             failure = (f"the next run (Nd = {2 * problem.nd}, {nxt:,} dofs) exceeds "
                        f"-error_max_dofs {limit:,}; reached {quantity} "
                        + (f"{rel:.2e}" if rel is not None else "unestimated"))
             break
-        sc["mesh"]["nd"] = 2 * problem.nd
+        if k is None:
+            sc["mesh"]["nd"] = 2 * problem.nd
+        else:
+            k += 1
         if grade and problem.error_indicator is not None:   # (else: no level below it)
-            sc, info = adapt.graded_scene(sc, comm, grade, solved=problem)
+            sc, info = adapt.graded_scene(sc, comm, grade, solved=problem,
+                                          finer=1 if k is None else 2)
         del problem
     s["error_target"] = {"target": target, "quantity": quantity, "reached": failure is None,
                          "reason": failure, "runs": history}

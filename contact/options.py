@@ -92,8 +92,8 @@ REGISTRY = [
            "the contact force and the energy from the run's own coarse-to-fine levels "
            "(Richardson; three levels or more; their Newton iterations then go to "
            "-newton_rtol 1e-10)", "BOOL"),
-    Option("error_target", 0.0, float, "refine (box meshes: Nd doubled, graded by the "
-           "previous run's indicator: -error_refine) until the estimated relative error of "
+    Option("error_target", 0.0, float, "refine (boxes: Nd doubled; files: -mesh_refine + 1; "
+           "graded by the previous run's indicator: -error_refine) until the estimated error of "
            "-error_quantity is <= TOL; prints error against run time as it goes; stops "
            "with a named reason at -error_max_dofs or where the levels are not asymptotic "
            "(then exit status 1, the last run's results written); 0: off", "TOL"),
