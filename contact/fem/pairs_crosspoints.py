@@ -30,8 +30,9 @@ class PairError(ValueError):
     every rank: the surfaces are every rank's); the discretisation raises it as SceneError."""
 
 
-def _shares(part, isx):
-    """(k, j, a_kj) (indices into the part's slave face nodes) for the crosspoints isx."""
+def _shares(part, isx, first):
+    """(k, j, a_kj) (indices into the part's slave face nodes) for the crosspoints isx
+    (first: the earlier pair's name that keeps them)."""
     fs, xs = part["faces"], part["xs"]
     f, i = np.nonzero(isx[fs])
     j = fs[f, i]
@@ -40,8 +41,9 @@ def _shares(part, isx):
     opp = fs[f, (i + 2) % 4]
     none = ~ok.any(axis=1)
     if np.any(none & isx[opp]):
-        raise PairError(f"contact pair {part['name']!r}: a slave face has crosspoints (nodes "
-                        f"of an earlier pair's slave faces) at all its corners; refine it")
+        raise PairError(f"contact pairs {first!r} and {part['name']!r} share a slave face "
+                        f"(all its corners on both): two pairs may share only the nodes "
+                        f"where their slave faces meet (crosspoints)")
     side[none, 0], ok[none, 0] = opp[none], True
     e1, e2 = xs[fs[f, (i + 1) % 4]] - xs[j], xs[fs[f, (i + 3) % 4]] - xs[j]
     tri = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
@@ -70,7 +72,8 @@ def take(parts):
                for p in parts[:n] for q in parts[:n] if q is not p):
             raise PairError(f"contact pair {b['name']!r}: a node lies on three pairs' slave "
                             f"faces")
-        k, j, a = _shares(b, isx)
+        first = next(p["name"] for p in parts[:n] if np.isin(b["sid"][isx], p["sid"]).any())
+        k, j, a = _shares(b, isx, first)
         use = b["ok"][j]                        # an uncovered j has no multiplier to move
         k, j, a = k[use], j[use], a[use]
         if not b["ok"][k].all():
