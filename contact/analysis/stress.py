@@ -260,7 +260,7 @@ def by_pair(comm, disc, st):
         on = np.isin(mine, p["slave_ids"])
         sub = {k: st[k][on] for k in ("traction", "w", "status")} if st is not None else \
             {"traction": np.zeros((0, 3)), "w": np.zeros(0), "status": np.zeros(0, int)}
-        if p.get("extra") is not None and st is not None:   # beside crosspoints: psi_k'
+        if p.get("extra") is not None and p["extra"][0].size and st is not None:   # beside crosspoints: psi_k'
             ids, more = p["extra"]                         # (fem/pairs_crosspoints.py)
             at = np.minimum(np.searchsorted(ids, mine[on]), ids.size - 1)
             sub["w"] = sub["w"] + np.where(ids[at] == mine[on], more[at], 0.0)

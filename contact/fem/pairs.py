@@ -245,7 +245,7 @@ class ContactPair:
         clamped dofs of the pair's nodes, all ranks'; the module docstring)."""
         keep = ~np.isin(3 * srow[:, None] + np.arange(3), held)
         keep &= ~np.isin(3 * mcol[:, None] + np.arange(3), held)
-        return srow, mcol, np.repeat(val[:, None], 3, axis=1), keep
+        return srow, mcol, val, keep
 
     def _turning(self, coupling, nodes, flip):
         """Z's rows at the slave nodes `nodes` (global, sorted) in padded node arrays, for
@@ -259,7 +259,7 @@ class ContactPair:
         self._masters = np.full((nodes.size, width), -1, dtype=np.int64)
         self._weights = np.zeros((nodes.size, width, 3))
         self._masters[at, slot] = mcol
-        self._weights[at, slot] = val * keep
+        self._weights[at, slot] = (val if val.ndim == 2 else val[:, None]) * keep
         self._d = np.ones((nodes.size, 3))
         self._d[np.searchsorted(nodes, flip // 3), flip % 3] = -1.0
 
@@ -269,7 +269,8 @@ class ContactPair:
         (lo, hi), N = self._rows, 3 * self.n_nodes
         srow, mcol, val, keep = self._g if inverse else self._e
         k = np.nonzero(keep)
-        rows, cols, vals = 3 * srow[k[0]] + k[1], 3 * mcol[k[0]] + k[1], val[k]
+        rows, cols = 3 * srow[k[0]] + k[1], 3 * mcol[k[0]] + k[1]
+        vals = val[k] if val.ndim == 2 else val[k[0]]      # (per component: crosspoints)
         d = np.ones(hi - lo)
         d[flip[(flip >= lo) & (flip < hi)] - lo] = -1.0
         mine = (rows >= lo) & (rows < hi)

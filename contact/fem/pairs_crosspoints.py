@@ -60,6 +60,7 @@ def take(parts):
     j rows (srow, mcol, v))."""
     moved = []
     seen = np.zeros(0, dtype=np.int64)
+    orig = [p["sid"] for p in parts]
     for n, b in enumerate(parts):
         isx = np.isin(b["sid"], seen)
         seen = np.union1d(seen, b["sid"])
@@ -68,11 +69,11 @@ def take(parts):
         if b["faces"].shape[1] != 4:
             raise PairError(f"contact pair {b['name']!r}: crosspoints (nodes on two pairs' "
                             f"slave faces) need the q1 element; use -element q1")
-        if any(np.isin(b["sid"][isx], p["sid"][np.isin(p["sid"], q["sid"])]).any()
-               for p in parts[:n] for q in parts[:n] if q is not p):
+        if any(np.isin(b["sid"][isx], np.intersect1d(p, q)).any()
+               for i, p in enumerate(orig[:n]) for q in orig[i + 1:n]):
             raise PairError(f"contact pair {b['name']!r}: a node lies on three pairs' slave "
                             f"faces")
-        first = next(p["name"] for p in parts[:n] if np.isin(b["sid"][isx], p["sid"]).any())
+        first = next(p["name"] for p, o in zip(parts[:n], orig) if np.isin(o, b["sid"]).any())
         k, j, a = _shares(b, isx, first)
         use = b["ok"][j]                        # an uncovered j has no multiplier to move
         k, j, a = k[use], j[use], a[use]
@@ -121,6 +122,7 @@ def extend(E, moved, d_of, held, n_nodes):
     docstring). E: the other entries, sorted by row (G = -E there); d_of(ids): D's diagonal
     (n, 3) at the nodes ids; held: the clamped dofs of the pairs' nodes (all ranks')."""
     sr, mc, w, kp = E
+    w = np.repeat(w[:, None], 3, axis=1)                         # per component
     hold = lambda ids: np.isin(3 * ids[:, None] + np.arange(3), held)    # noqa: E731
     ks = np.unique(np.concatenate([m[1] for m in moved]))
     mine = np.isin(sr, ks)

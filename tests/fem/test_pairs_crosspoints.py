@@ -3,9 +3,12 @@ the slave side of both pairs, the nodes of its edge where bottom and side meet o
 pairs' slave faces; the first pair keeps them, the second's dual basis takes them in at
 their neighbours. The patch test (uniform pressures on both faces, the edge included), the
 pairs' forces, and the refusals that remain."""
+import copy
+import os
+
 import numpy as np
 import pytest
-from conftest import solve
+from conftest import ROOT, solve
 
 from contact import scene as scenes
 from contact.analysis import stress
@@ -73,3 +76,119 @@ def test_patch_crosspoint(comm, young):
     smax = np.abs(cells[:, [1, 3, 4, 5]]).max(initial=0.0)
     assert smax < 1e-8 * Q
     del body, want
+
+
+def _alone(sc):
+    """The block of `sc` alone on rollers: u_z = 0 on its bottom, u_x = 0 on its side (the
+    rigid base and wall as Dirichlet conditions)."""
+    b = {k: v for k, v in sc["boundary"].items()
+         if k in ("press", "sym_y", "sym_x") or v.get("body") == "block"}
+    b = {k: v for k, v in b.items() if v["type"] != "contact"}
+    b["floor"] = {"type": "dirichlet", "body": "block", "plane": ["z", 1.0], "components": ["z"]}
+    b["side"] = {"type": "dirichlet", "body": "block", "plane": ["x", 1.0], "components": ["x"]}
+    b.pop("push", None)
+    return {**sc, "name": "alone", "bodies": {"block": sc["bodies"]["block"]}, "boundary": b}
+
+
+def _block_u(pr):
+    """The block's nodes' (coordinates, displacement), sorted, on every rank."""
+    from conftest import gather
+    xyz, u = gather(pr)[:2]
+    on = (xyz[:, 2] >= 1.0 - 1e-12) & (xyz[:, 0] <= 1.0 + 1e-12)
+    # the block's: above z = 1, left of x = 1, not the wall's nor the base's (their
+    # nodes there are on z = 1 with x = 1 only: the wall's edge, the base's edge)
+    return xyz[on], u[on]
+
+
+@pytest.mark.parametrize("shear", [0.0, 0.2])
+def test_stiff_limit(comm, shear):
+    """Base and wall 1e6 times stiffer than the block (the wall's back held along x): the
+    block's displacement that of the block on rollers (Dirichlet u_z = 0 on its bottom, u_x = 0 on its side), to 1e-5 of
+    max |u| under the uniform load; with a shear 0.2 Q toward the wall on the top (the block
+    free on x = 0) to the weak side constraint's difference at the crosspoint edge: there
+    the side pair constrains only u_k + c u_j (its neighbour k's row, c = 1/2 here), not
+    u_j itself (measured: u_x at the edge -2.9e-4 against 0, at the node above it +1.4e-4;
+    2.2e-2 of max |u| = 0.022 on this coarse mesh, the bound 3e-2)."""
+    sc = corner(young=(1e6, 1.0, 1e6))
+    b = sc["boundary"]
+    b["push"] = {"type": "dirichlet", "body": "wall", "plane": ["x", 2.0], "components": ["x"]}
+    if shear:
+        b.pop("sym_x")
+        b["base_x"] = {"type": "dirichlet", "body": "base", "plane": ["x", 0.0],
+                       "components": ["x"]}
+        b["press"]["traction"] = [shear * Q, 0.0, -Q]
+    ref = solve(scenes.validate(_alone(copy.deepcopy(sc))), comm)
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged and ref.converged
+    from conftest import gather
+    xr, ur = gather(ref)[:2]
+    x, u = gather(pr)[:2]
+    # the block's nodes in the three-body mesh: match the reference's coordinates
+    # (the base's and wall's nodes on the block's faces are told apart by their u)
+    key = lambda X: np.round(X, 9) @ [1e6, 1e3, 1.0]            # noqa: E731
+    kr = key(xr)
+    scale = np.abs(ur).max()
+    best = np.full(xr.shape[0], np.inf)
+    order = np.argsort(kr)
+    at = np.searchsorted(kr[order], key(x))
+    hit = (at < kr.size) & (kr[order][np.minimum(at, kr.size - 1)] == key(x))
+    i = order[at[hit]]
+    np.minimum.at(best, i, np.abs(u[hit] - ur[i]).max(axis=1))
+    assert np.isfinite(best).all()
+    err = best.max() / scale
+    assert err < (1e-5 if shear == 0.0 else 3e-2), err
+
+
+#: runs/scenes/block_on_base_against_wall.yaml on one rank (runs/results/two-bodies-
+#: crosspoints.md): each pair's force on the block
+SHIPPED = {"block_on_base": [-1.8485598854886838, 0.0, 6.1840301537436355],
+           "block_on_wall": [-17.291067678008794, 0.0, -1.0162147407764335]}
+
+
+def test_shipped_block_on_base_against_wall(comm):
+    """runs/scenes/block_on_base_against_wall.yaml (examples are tests): converges; both
+    pairs press the block (the base up, the wall back along -x), their friction forces
+    below F N, the base's all slip, the wall's stick; the forces those of one rank to 1e-7
+    (run on 2 ranks: the same answer)."""
+    sc = scenes.validate(scenes.load(os.path.join(ROOT, "runs", "scenes",
+                                                  "block_on_base_against_wall.yaml")))
+    pr = solve(sc, comm)
+    assert pr.converged
+    from contact.io import report
+    pairs = report.summary(pr, 0.0)["contact_pairs"]
+    base, wall = (pairs[n]["contact_result"] for n in ("block_on_base", "block_on_wall"))
+    assert base["force"][2] > 0.0 and wall["force"][0] < 0.0
+    for cr in (base, wall):
+        assert 0.0 < cr["tangential"] <= 0.3 * cr["normal"] * (1 + 1e-9)
+    for n, want in SHIPPED.items():
+        got = pairs[n]["contact_result"]["force"]
+        assert np.allclose(got, want, rtol=0, atol=1e-7 * np.abs(want).max()), (n, got)
+
+
+def test_refusals(comm):
+    """What stays refused, each in one line: a node on three pairs' slave faces (the
+    block's corner against a second wall behind it), crosspoints with the q2 element, the
+    rigid foundation's part meeting a pair's slave face."""
+    sc = corner()
+    sc["bodies"]["back"] = {"lower": [0, 1, 1], "upper": [1, 2, 2], "cells": [3, 2, 2],
+                            "material": {"young": 1.0, "poisson": 0.3}}
+    b = sc["boundary"]
+    b["on_back"] = {"type": "contact", "body": "block", "plane": ["y", 1.0],
+                    "master": {"body": "back"}}
+    b["back_y"] = {"type": "dirichlet", "body": "back", "plane": ["y", 2.0]}
+    with pytest.raises(SceneError, match=r"^contact pair 'on_back': a node lies on three "
+                       r"pairs' slave faces$"):
+        solve(scenes.validate(sc), comm)
+    sc = corner()
+    sc["mesh"] = {"element": "q2"}
+    with pytest.raises(SceneError, match=r"^contact pair 'on_wall': crosspoints \(nodes on "
+                       r"two pairs' slave faces\) need the q1 element; use -element q1$"):
+        solve(scenes.validate(sc), comm)
+    sc = corner()
+    b = sc["boundary"]
+    b.pop("on_base")
+    b["bottom"] = {"type": "contact", "body": "block", "plane": ["z", 1.0]}
+    sc["contact"]["foundation"] = {"point": [0.0, 0.0, 1.0]}
+    with pytest.raises(SceneError, match=r"^contact part 'bottom' \(the rigid foundation\) "
+                       r"and contact pair 'on_wall' share slave nodes"):
+        solve(scenes.validate(sc), comm)
