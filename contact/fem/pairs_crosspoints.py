@@ -73,7 +73,8 @@ def take(parts):
                for i, p in enumerate(orig[:n]) for q in orig[i + 1:n]):
             raise PairError(f"contact pair {b['name']!r}: a node lies on three pairs' slave "
                             f"faces")
-        first = next(p["name"] for p, o in zip(parts[:n], orig) if np.isin(o, b["sid"]).any())
+        first = next(p["name"] for p, o in zip(parts[:n], orig)
+                     if np.isin(o, b["sid"]).any())
         k, j, a = _shares(b, isx, first)
         use = b["ok"][j]                        # an uncovered j has no multiplier to move
         k, j, a = k[use], j[use], a[use]
@@ -82,17 +83,17 @@ def take(parts):
                             f"is not covered by the master")
         c = a * b["D"][j] / b["D"][k]
         sid = b["sid"]
-        xid = sid[isx]
-        drop = np.isin(b["srow"], xid)
-        b["xid"], b["Dx"] = sid[isx], b["D"][isx]
+        drop = np.isin(b["srow"], sid[isx])
+        b["xid"], b["Dx"] = sid[isx], b["D"][isx]                  # (weight_off)
         ek, inv = np.unique(sid[k], return_inverse=True)     # psi_k' integrates to D_k + this
         b["extra"] = (ek, np.bincount(inv.ravel(), a * b["D"][j], minlength=ek.size))
         moved.append((n, sid[k], sid[j], c, b["srow"][drop], b["mcol"][drop], b["v"][drop]))
         gaps = b["gaps"].copy()
         np.add.at(gaps, k, c * b["gaps"][j])
         keep = ~isx
-        b.update(sid=sid[keep], ok=b["ok"][keep], D=b["D"][keep], gaps=gaps[keep], srow=b["srow"][~drop],
-                 mcol=b["mcol"][~drop], v=b["v"][~drop], rows=sid[keep][b["ok"][keep]])
+        b.update(sid=sid[keep], ok=b["ok"][keep], D=b["D"][keep], gaps=gaps[keep],
+                 srow=b["srow"][~drop], mcol=b["mcol"][~drop], v=b["v"][~drop],
+                 rows=sid[keep][b["ok"][keep]])
     return moved
 
 
