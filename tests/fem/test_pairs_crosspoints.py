@@ -96,11 +96,12 @@ def _alone(sc):
 def test_stiff_limit(comm, shear):
     """Base and wall 1e6 times stiffer than the block (the wall's back held along x): the
     block's displacement that of the block on rollers (Dirichlet u_z = 0 on its bottom,
-    u_x = 0 on its side), to 1e-5 of max |u| under the uniform load; with a shear 0.2 Q toward the wall on the top (the block
-    free on x = 0) to the weak side constraint's difference at the crosspoint edge: there
-    the side pair constrains only u_k + c u_j (its neighbour k's row, c = 1/2 here), not
-    u_j itself (measured: u_x at the edge -2.9e-4 against 0, at the node above it +1.4e-4;
-    2.2e-2 of max |u| = 0.022 on this coarse mesh, the bound 3e-2)."""
+    u_x = 0 on its side), to 1e-5 of max |u| under the uniform load; with a shear 0.2 Q
+    toward the wall on the top (the block free on x = 0) to the weak side constraint's
+    difference at the crosspoint edge: there the side pair constrains only u_k + c u_j
+    (its neighbour k's row, c = 1/2 here), not u_j itself (measured: u_x at the edge
+    -2.9e-4 against 0, at the node above it +1.4e-4; 2.2e-2 of max |u| = 0.022 on this
+    coarse mesh, the bound 3e-2)."""
     sc = corner(young=(1e6, 1.0, 1e6))
     b = sc["boundary"]
     b["push"] = {"type": "dirichlet", "body": "wall", "plane": ["x", 2.0],
