@@ -143,9 +143,11 @@ class ContactPair:
 
     dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows;
     roles: the q2 element's vertex roles (hierarchy.QuadraticCells; the surfaces' faces are
-    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None."""
+    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None;
+    taken: (label, global vertex numbers) of the rigid foundation's contact nodes, which
+    keep their crosspoints with the pairs (pairs_crosspoints.py), or None."""
 
-    def __init__(self, dm, coords, surfaces, clamped, roles=None):
+    def __init__(self, dm, coords, surfaces, clamped, roles=None, taken=None):
         comm = dm.getComm()
         self.comm = comm
         if roles is not None:
@@ -157,7 +159,7 @@ class ContactPair:
         parts = [self._surface(comm, gidx, coords, s) for s in surfaces]
         #: the crosspoints' couplings (pairs_crosspoints.py: a node on two pairs' slave
         #: faces is the first's; the later's dual basis takes it in at its neighbours)
-        self._moved = crosspoints.take(parts)
+        self._moved = crosspoints.take(parts, taken)
         self._parts = parts
         _check_nodes(parts)
         #: the normal n into the slave bodies (the foundation's normal of a one-body scene;

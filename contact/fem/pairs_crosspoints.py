@@ -17,8 +17,9 @@ u_m). The contact set's weight at j is its first pair's D_j alone (`weight_off`)
 
 a_kj: the share of j's lumped weight on each slave face of the later pair at j (the
 triangle at j's corner) goes to the face's corners beside j that are no crosspoints (the
-opposite corner where both are). Refused (PairError, one line): a node on three pairs'
-slave faces, a face of the later pair whose corners are all crosspoints, a neighbour k the
+opposite corner where both are). The rigid foundation's contact nodes beside the pairs
+come first of all (`taken`: a block on the foundation against a wall). Refused (PairError,
+one line): a node on three contact parts' slave faces, a face of the later pair whose corners are all crosspoints, a neighbour k the
 master does not cover, the q2 element's 9-node faces.
 """
 import numpy as np
@@ -32,7 +33,7 @@ class PairError(ValueError):
 
 def _shares(part, isx, first):
     """(k, j, a_kj) (indices into the part's slave face nodes) for the crosspoints isx
-    (first: the earlier pair's name that keeps them)."""
+    (first: the earlier contact part that keeps them, as the refusal names it)."""
     fs, xs = part["faces"], part["xs"]
     f, i = np.nonzero(isx[fs])
     j = fs[f, i]
@@ -41,9 +42,9 @@ def _shares(part, isx, first):
     opp = fs[f, (i + 2) % 4]
     none = ~ok.any(axis=1)
     if np.any(none & isx[opp]):
-        raise PairError(f"contact pairs {first!r} and {part['name']!r} share a slave face "
-                        f"(all its corners on both): two pairs may share only the nodes "
-                        f"where their slave faces meet (crosspoints)")
+        raise PairError(f"{first} and contact pair {part['name']!r} share slave nodes on a "
+                        f"whole face: contact parts may share only the nodes where their "
+                        f"slave faces meet (crosspoints)")
     side[none, 0], ok[none, 0] = opp[none], True
     e1, e2 = xs[fs[f, (i + 1) % 4]] - xs[j], xs[fs[f, (i + 3) % 4]] - xs[j]
     tri = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
@@ -53,14 +54,18 @@ def _shares(part, isx, first):
     return kk, jj, aa
 
 
-def take(parts):
+def take(parts, taken=None):
     """Drops each crosspoint from the later pairs' parts (fem/pairs.py's _surface dicts,
     changed in place: sid, ok, gaps, E's entries, rows) and returns per such pair the moved
     couplings: (part index, k, j, c_kj (global vertex numbers), the dropped entries of the
     j rows (srow, mcol, v))."""
     moved = []
-    seen = np.zeros(0, dtype=np.int64)
+    seen = np.zeros(0, dtype=np.int64) if taken is None else taken[1]
     orig = [p["sid"] for p in parts]
+    names = [f"contact pair {p['name']!r}" for p in parts]
+    if taken is not None:                       # the foundation's nodes: first of all
+        orig, names = [taken[1]] + orig, [taken[0]] + names
+    before = len(orig) - len(parts)
     for n, b in enumerate(parts):
         isx = np.isin(b["sid"], seen)
         seen = np.union1d(seen, b["sid"])
@@ -70,10 +75,10 @@ def take(parts):
             raise PairError(f"contact pair {b['name']!r}: crosspoints (nodes on two pairs' "
                             f"slave faces) need the q1 element; use -element q1")
         if any(np.isin(b["sid"][isx], np.intersect1d(p, q)).any()
-               for i, p in enumerate(orig[:n]) for q in orig[i + 1:n]):
-            raise PairError(f"contact pair {b['name']!r}: a node lies on three pairs' slave "
-                            f"faces")
-        first = next(p["name"] for p, o in zip(parts[:n], orig)
+               for i, p in enumerate(orig[:n + before]) for q in orig[i + 1:n + before]):
+            raise PairError(f"contact pair {b['name']!r}: a node lies on three contact "
+                            f"parts' slave faces")
+        first = next(m for m, o in zip(names[:n + before], orig)
                      if np.isin(o, b["sid"]).any())
         k, j, a = _shares(b, isx, first)
         use = b["ok"][j]                        # an uncovered j has no multiplier to move

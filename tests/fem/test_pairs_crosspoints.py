@@ -166,8 +166,9 @@ def test_shipped_block_on_base_against_wall(comm):
 
 def test_refusals(comm):
     """What stays refused, each in one line: a node on three pairs' slave faces (the
-    block's corner against a second wall behind it), crosspoints with the q2 element, the
-    rigid foundation's part meeting a pair's slave face."""
+    block's corner against a second wall behind it), crosspoints with the q2 element (two
+    pairs on one whole slave face, and the foundation's part on a pair's whole slave face:
+    test_pairs_many.py)."""
     sc = corner()
     sc["bodies"]["back"] = {"lower": [0, 1, 1], "upper": [1, 2, 2], "cells": [3, 2, 2],
                             "material": {"young": 1.0, "poisson": 0.3}}
@@ -176,18 +177,36 @@ def test_refusals(comm):
                     "master": {"body": "back"}}
     b["back_y"] = {"type": "dirichlet", "body": "back", "plane": ["y", 2.0]}
     with pytest.raises(SceneError, match=r"^contact pair 'on_back': a node lies on three "
-                       r"pairs' slave faces$"):
+                       r"contact parts' slave faces$"):
         solve(scenes.validate(sc), comm)
     sc = corner()
     sc["mesh"] = {"element": "q2"}
     with pytest.raises(SceneError, match=r"^contact pair 'on_wall': crosspoints \(nodes on "
                        r"two pairs' slave faces\) need the q1 element; use -element q1$"):
         solve(scenes.validate(sc), comm)
+
+
+def test_patch_on_the_foundation(comm):
+    """The block on the rigid foundation (z = 1, +z) instead of the base, against the wall:
+    the foundation keeps the crosspoints, the wall pair's dual basis takes them in; the
+    multiplier Q on the bottom (the edge too) and P on the side to 1e-8, the block's
+    stress diag(-P, 0, -Q)."""
     sc = corner()
+    sc["bodies"].pop("base")
     b = sc["boundary"]
-    b.pop("on_base")
-    b["bottom"] = {"type": "contact", "body": "block", "plane": ["z", 1.0]}
+    for k in ("on_base", "bottom"):
+        b.pop(k)
+    b["on_floor"] = {"type": "contact", "body": "block", "plane": ["z", 1.0]}
     sc["contact"]["foundation"] = {"point": [0.0, 0.0, 1.0]}
-    with pytest.raises(SceneError, match=r"^contact part 'bottom' \(the rigid foundation\) "
-                       r"and contact pair 'on_wall' share slave nodes"):
-        solve(scenes.validate(sc), comm)
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged
+    lam, X = pr.cs.local_array(pr.l), pr.cs.coordinates
+    side, bottom = np.abs(X[:, 0] - 1.0) < 1e-12, np.abs(X[:, 2] - 1.0) < 1e-12
+    mpi = pr.comm.tompi4py()
+    assert mpi.allreduce(int((bottom & side).sum())) == 6       # the edge: the foundation's
+    assert mpi.allreduce(int(lam.size)) == 6 * 6 + 6 * 3
+    assert np.all(np.abs(lam[bottom] - Q) < 1e-8 * Q)
+    assert np.all(np.abs(lam[side & ~bottom] - P) < 1e-8 * P)
+    sig = np.asarray(stress.body_stress(pr)["cell"])
+    want = np.array([[-P, -Q], [-P, 0.0]])                        # the block's, the wall's
+    assert np.abs(sig[:, None, [0, 2]] - want).max(axis=2).min(axis=1).max() < 1e-8 * Q

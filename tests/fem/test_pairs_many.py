@@ -186,9 +186,9 @@ def test_refused_shared_nodes(comm):
                         "master": {"body": m}}
         b[f"{m}_on_base"] = {"type": "contact", "body": m, "plane": ["z", 0.5],
                              "master": {"body": "base"}}
-    with pytest.raises(SceneError, match=r"^contact pairs 'on_a' and 'on_c' share a slave "
-                       r"face \(all its corners on both\): two pairs may share only the "
-                       r"nodes where their slave faces meet \(crosspoints\)$"):
+    with pytest.raises(SceneError, match=r"^contact pair 'on_a' and contact pair 'on_c' share "
+                       r"slave nodes on a whole face: contact parts may share only the nodes "
+                       r"where their slave faces meet \(crosspoints\)$"):
         solve(scenes.validate(sc), comm)
 
 
