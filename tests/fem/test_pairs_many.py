@@ -274,8 +274,9 @@ def test_refused_a_body_its_pairs_do_not_hold(comm):
 
 
 def test_refused_foundation_beside_pairs(comm):
-    """The rigid foundation beside pairs: its normal an axis +e_k, and none of its nodes a
-    pair's slave node; one line naming the part."""
+    """The rigid foundation beside pairs: its normal an axis +e_k, and its part not on a
+    pair's whole slave face (crosspoints are the foundation's: test_pairs_crosspoints.py);
+    one line naming the part."""
     sc = three_blocks()
     sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
     sc["contact"]["foundation"] = {"normal": [0.0, 0.0, -1.0]}
