@@ -31,8 +31,9 @@ the slave node of two pairs (E's rows would add) and no slave node of one pair i
 node of another (E E = 0); `_check_nodes` refuses the latter (PairError, one line naming
 the two pairs). A node on two pairs' slave faces (a crosspoint) is the first pair's; the
 later pair's dual basis takes it in at its neighbours k, whose rows of Z then hold the
-crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own entries G). Each pair has its own normal (+-e_k, any k): the contact set
-reads each node's normal dof (contactset.py: `axes`).
+crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own entries G).
+Each pair has its own normal (+-e_k, any k): the contact set reads each node's normal dof
+(contactset.py: `axes`).
 
 Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
 (0), a clamped master component contributes its 0.
@@ -227,7 +228,8 @@ class ContactPair:
         # open at +1e-17 took one more step than on 1)
         scale = max(np.abs(xs).max(initial=0.0), np.abs(xm).max(initial=0.0), 1e-300)
         gaps[np.abs(gaps) <= 64.0 * np.finfo(float).eps * scale] = 0.0
-        return {"name": s.name, "faces": fs, "xs": xs, "D": mt.D, "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
+        return {"name": s.name, "faces": fs, "xs": xs, "D": mt.D,       # (crosspoints)
+                "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
                 "mcol": mid[c], "v": v, "rows": sid[ok], "cols": np.unique(mid[c]),
                 "mid": mid, "normal": normal, "d": -1.0 if s.sign > 0 else 1.0}
 

@@ -3,7 +3,7 @@
 
 The pair listed first keeps the node as its slave node (all three components relative to
 its master, as any other). The later pair drops it from its multiplier space and modifies
-its dual basis at the crosspoint, as Wohlmuth (2000; 2011, Acta Numerica, section 4) and
+its dual basis at the crosspoint, as Wohlmuth (2000; Acta Numerica 2011) and
 Popp, Gee & Wall (2010) do at a slave surface's boundary: the crosspoint j's dual function
 joins those of its neighbours k on the slave faces, psi_k' = psi_k + a_kj psi_j (a_kj >= 0,
 sum_k a_kj = 1: the multipliers still hold constants, so a uniform pressure is exact). The
@@ -18,12 +18,13 @@ u_m). The contact set's weight at j is its first pair's D_j alone (`weight_off`)
 a_kj: the share of j's lumped weight on each slave face of the later pair at j (the
 triangle at j's corner) goes to the face's corners beside j that are no crosspoints (the
 opposite corner where both are). The rigid foundation's contact nodes beside the pairs
-come first of all (`taken`: a block on the foundation against a wall). Refused (PairError,
-one line): a node on three contact parts' slave faces, a face of the later pair whose corners are all crosspoints, a neighbour k the
-master does not cover, the q2 element's 9-node faces.
+come first of all (`taken`: a block on the foundation against a wall). A pair's force
+(analysis/stress.py: by_pair) weighs lambda_k by int psi_k' = D_k + sum_j a_kj D_j.
+Refused (PairError, one line): a node on three contact parts' slave faces, a face of the
+later pair whose corners are all crosspoints (two parts on one slave face), a neighbour k
+the master does not cover, the q2 element's 9-node faces.
 """
 import numpy as np
-
 
 
 class PairError(ValueError):

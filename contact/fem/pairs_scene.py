@@ -100,7 +100,8 @@ def foundation_beside_pairs(disc, names, gap, covered, axes):
     contact pairs' contact set (gap, covered, axes: per owned vertex, the pairs', changed
     in place): the gap to the foundation's plane, whose normal must be an axis +e_k (the
     contact set's normal dof k), none of them a pair's slave node (its crosspoints with a
-    pair the pair has left to it: foundation_nodes); SceneError naming the parts otherwise. Returns the bodies the foundation holds (their names); sets
+    pair the pair has left to it: foundation_nodes); SceneError naming the parts
+    otherwise. Returns the bodies the foundation holds (their names); sets
     disc.foundation_points and disc.foundation_normal (for the rigid-motion checks)."""
     comm = disc.comm.tompi4py()
     n = np.asarray(foundation_normal(disc.scene), dtype=float)
