@@ -260,6 +260,10 @@ def by_pair(comm, disc, st):
         on = np.isin(mine, p["slave_ids"])
         sub = {k: st[k][on] for k in ("traction", "w", "status")} if st is not None else \
             {"traction": np.zeros((0, 3)), "w": np.zeros(0), "status": np.zeros(0, int)}
+        if p.get("extra") is not None and p["extra"][0].size and st is not None:
+            ids, more = p["extra"]           # beside crosspoints: psi_k' (pairs_crosspoints)
+            at = np.minimum(np.searchsorted(ids, mine[on]), ids.size - 1)
+            sub["w"] = sub["w"] + np.where(ids[at] == mine[on], more[at], 0.0)
         out[p["name"]] = resultants(comm, sub, p["normal"])
     return out
 

@@ -292,6 +292,9 @@ class Discretisation:
         if self.pair is not None:                # n = -e_k: read as +e_k through Z (pairs.py)
             self.normal = list(self.pair.normal)
             self.cs.sign = self.pair.signs(rstart // 3 + self.cs.nodes)   # (per node)
+            off = self.pair.weight_off(template.getLocalSize() // 3, rstart // 3)
+            if off is not None:                  # crosspoints: their first pair's D_j
+                self.cs.w.setArray(self.cs.local_array(self.cs.w) - off[self.cs.nodes])
         template.destroy()
         if self.cs.off_axes:                     # n off the axes: contact dofs (t1, t2, n)
             self.frame = ContactFrame(dm, basis(self.normal), self.cs.nodes, coords.shape[0])

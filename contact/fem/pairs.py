@@ -28,9 +28,12 @@ nodes only.
 Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pair's slave
 nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
 the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
-node of another (E E = 0); `_check_nodes` refuses the scene otherwise (PairError, one
-line naming the two pairs). Each pair has its own normal (+-e_k, any k): the contact set
-reads each node's normal dof (contactset.py: `axes`).
+node of another (E E = 0); `_check_nodes` refuses the latter (PairError, one line naming
+the two pairs). A node on two pairs' slave faces (a crosspoint) is the first pair's; the
+later pair's dual basis takes it in at its neighbours k, whose rows of Z then hold the
+crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own entries G).
+Each pair has its own normal (+-e_k, any k): the contact set reads each node's normal dof
+(contactset.py: `axes`).
 
 Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
 (0), a clamped master component contributes its 0.
@@ -64,8 +67,10 @@ from collections import namedtuple
 import numpy as np
 from petsc4py import PETSc
 
+from contact.fem import pairs_crosspoints as crosspoints
 from contact.fem.mortar import mortar_matrices
 from contact.fem.mortar_q2 import edge_bends, nine_node_faces
+from contact.fem.pairs_crosspoints import PairError  # noqa: F401  (pairs.PairError)
 
 #: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
 #: (a sliver of master over it: the dual basis's row there is ill-conditioned)
@@ -111,11 +116,6 @@ def _held(comm, clamped, nodes):
     return np.unique(np.concatenate(parts))
 
 
-class PairError(ValueError):
-    """A scene's contact pairs that this change of basis cannot hold (one line, the same on
-    every rank: the surfaces are every rank's); the discretisation raises it as SceneError."""
-
-
 #: one contact pair's surfaces: name (its contact part), slave and master (local faces (nf,
 #: 4), counter-clockwise about their body's outward normal), the slave's outward normal
 #: sign e_axis
@@ -144,9 +144,11 @@ class ContactPair:
 
     dm, coords: the mesh; surfaces: a Surface per pair; clamped: global clamped rows;
     roles: the q2 element's vertex roles (hierarchy.QuadraticCells; the surfaces' faces are
-    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None."""
+    then its refined quadrilaterals, coupled as 9-node faces: fem/mortar_q2.py), or None;
+    taken: (label, global vertex numbers) of the rigid foundation's contact nodes, which
+    keep their crosspoints with the pairs (pairs_crosspoints.py), or None."""
 
-    def __init__(self, dm, coords, surfaces, clamped, roles=None):
+    def __init__(self, dm, coords, surfaces, clamped, roles=None, taken=None):
         comm = dm.getComm()
         self.comm = comm
         if roles is not None:
@@ -156,6 +158,10 @@ class ContactPair:
         g.destroy()
         gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
         parts = [self._surface(comm, gidx, coords, s) for s in surfaces]
+        #: the crosspoints' couplings (pairs_crosspoints.py: a node on two pairs' slave
+        #: faces is the first's; the later's dual basis takes it in at its neighbours)
+        self._moved = crosspoints.take(parts, taken)
+        self._parts = parts
         _check_nodes(parts)
         #: the normal n into the slave bodies (the foundation's normal of a one-body scene;
         #: several pairs: the first's, each pair's own in `pairs`)
@@ -164,7 +170,8 @@ class ContactPair:
         #: (global vertex numbers)
         self.pairs = [{"name": p["name"], "normal": p["normal"], "slave_ids": p["rows"],
                        "n_slave": int(p["rows"].size), "slave_face": p["sid"],
-                       "axis": s.axis} for p, s in zip(parts, surfaces)]
+                       "axis": s.axis, "extra": p.get("extra")}
+                      for p, s in zip(parts, surfaces)]
         cat = lambda k: np.concatenate([p[k] for p in parts])           # noqa: E731
         #: per slave face node (global vertex number): whether the master covers it, and
         #: its gap n . (X_j - sum_l P_jl X_l)
@@ -179,8 +186,14 @@ class ContactPair:
         held = _held(comm, clamped, np.union1d(self.slave_ids, cat("mid")))
         flip = np.concatenate([3 * p["rows"] + s.axis for p, s in zip(parts, surfaces)
                                if p["d"] < 0] + [np.zeros(0, dtype=np.int64)])
-        self._turning(self._coupling(srow[order], mcol[order], v[order], held),
-                      np.sort(cat("rows")), flip)
+        E = self._coupling(srow[order], mcol[order], v[order], held)
+        if self._moved:
+            d_of = lambda ids: np.where(np.isin(3 * ids[:, None] + np.arange(3), flip),  # noqa
+                                        -1.0, 1.0)
+            E, self._g = crosspoints.extend(E, self._moved, d_of, held, self.n_nodes)
+        else:                                              # Z^-1 = D - D E
+            self._g = (E[0], E[1], -E[2], E[3])
+        self._turning(E, np.sort(cat("rows")), flip)
         self.Z, self.Zinv = (self._assemble(flip, inverse) for inverse in (False, True))
 
     @staticmethod
@@ -215,9 +228,17 @@ class ContactPair:
         # open at +1e-17 took one more step than on 1)
         scale = max(np.abs(xs).max(initial=0.0), np.abs(xm).max(initial=0.0), 1e-300)
         gaps[np.abs(gaps) <= 64.0 * np.finfo(float).eps * scale] = 0.0
-        return {"name": s.name, "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
+        return {"name": s.name, "faces": fs, "xs": xs, "D": mt.D,       # (crosspoints)
+                "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
                 "mcol": mid[c], "v": v, "rows": sid[ok], "cols": np.unique(mid[c]),
                 "mid": mid, "normal": normal, "d": -1.0 if s.sign > 0 else 1.0}
+
+    def weight_off(self, nv_owned, rstart_block):
+        """Per owned vertex, what the contact set's lumped weight holds too much at the
+        crosspoints (pairs_crosspoints.py), or None without crosspoints."""
+        if not self._moved:
+            return None
+        return crosspoints.weight_off(self._moved, self._parts, nv_owned, rstart_block)
 
     def signs(self, ids):
         """D's entry on the normal dof of the slave nodes `ids` (global vertex numbers):
@@ -244,7 +265,7 @@ class ContactPair:
         self._masters = np.full((nodes.size, width), -1, dtype=np.int64)
         self._weights = np.zeros((nodes.size, width, 3))
         self._masters[at, slot] = mcol
-        self._weights[at, slot] = val[:, None] * keep
+        self._weights[at, slot] = (val if val.ndim == 2 else val[:, None]) * keep
         self._d = np.ones((nodes.size, 3))
         self._d[np.searchsorted(nodes, flip // 3), flip % 3] = -1.0
 
@@ -252,15 +273,16 @@ class ContactPair:
         """Z = D + E (inverse: Z^-1 = D - D E) as an AIJ Mat (block size 3), D the diagonal
         of 1 and -1 (at the dofs `flip`)."""
         (lo, hi), N = self._rows, 3 * self.n_nodes
-        srow, mcol, val, keep = self._e
+        srow, mcol, val, keep = self._g if inverse else self._e
         k = np.nonzero(keep)
-        rows, cols, vals = 3 * srow[k[0]] + k[1], 3 * mcol[k[0]] + k[1], val[k[0]]
+        rows, cols = 3 * srow[k[0]] + k[1], 3 * mcol[k[0]] + k[1]
+        vals = val[k] if val.ndim == 2 else val[k[0]]      # (per component: crosspoints)
         d = np.ones(hi - lo)
         d[flip[(flip >= lo) & (flip < hi)] - lo] = -1.0
         mine = (rows >= lo) & (rows < hi)
         rows, cols, vals = rows[mine], cols[mine], vals[mine]
-        if inverse:
-            vals = -d[rows - lo] * vals
+        if inverse:                                        # Z^-1 = D (I + G)
+            vals = d[rows - lo] * vals
         # CSR of the owned rows: D and E's entries (columns sorted per row)
         allr = np.concatenate([np.arange(lo, hi), rows])
         allc = np.concatenate([np.arange(lo, hi), cols])

@@ -69,7 +69,8 @@ def contact_pairs(disc, pairs):
                                  f"face on the plane {m['plane'][0]} = {m['plane'][1]}")
         surfaces.append(Surface(name, disc.parts[name], master, axis, sign))
     try:
-        pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped, disc.roles)
+        pair = ContactPair(disc.dm, disc.coords, surfaces, disc.clamped, disc.roles,
+                           taken=foundation_nodes(disc))
     except PairError as e:
         raise SceneError(str(e)) from None
     for (name, part), p in zip(pairs, pair.pairs):
@@ -80,12 +81,27 @@ def contact_pairs(disc, pairs):
     return pair
 
 
+def foundation_nodes(disc):
+    """(label, global vertex numbers) of the rigid foundation's contact parts beside the
+    pairs (every rank's), or None: their nodes on a pair's slave faces are crosspoints the
+    foundation keeps (fem/pairs_crosspoints.py)."""
+    names = [n for n, p in disc.scene["boundary"].items() if p["type"] == "contact" and
+             "master" not in p]
+    if not names:
+        return None
+    on, start = owned_on(disc, names)
+    ids = disc.comm.tompi4py().allgather(start + np.flatnonzero(on))
+    return (f"contact part {names[0]!r} (the rigid foundation)",
+            np.unique(np.concatenate(ids)))
+
+
 def foundation_beside_pairs(disc, names, gap, covered, axes):
     """The owned vertices of the rigid foundation's contact parts `names` join a scene's
     contact pairs' contact set (gap, covered, axes: per owned vertex, the pairs', changed
     in place): the gap to the foundation's plane, whose normal must be an axis +e_k (the
-    contact set's normal dof k), none of them a pair's slave node; SceneError naming the
-    parts otherwise. Returns the bodies the foundation holds (their names); sets
+    contact set's normal dof k), none of them a pair's slave node (its crosspoints with a
+    pair the pair has left to it: foundation_nodes); SceneError naming the parts
+    otherwise. Returns the bodies the foundation holds (their names); sets
     disc.foundation_points and disc.foundation_normal (for the rigid-motion checks)."""
     comm = disc.comm.tompi4py()
     n = np.asarray(foundation_normal(disc.scene), dtype=float)

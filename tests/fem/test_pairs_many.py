@@ -164,7 +164,8 @@ def _halves(first="a", second="c"):
 def test_refused_shared_nodes(comm):
     """One line naming the two pairs: a face that is one pair's slave and another's
     master (the base's top, slave under a, master under c: the nodes on x = 0.5 are both),
-    and two pairs on one slave face (a top block resting on a and c)."""
+    and two pairs on one slave face (a top block resting on a and c: more than crosspoints,
+    fem/pairs_crosspoints.py)."""
     sc = _halves()
     sc["boundary"]["under_a"] = {"type": "contact", "body": "base", "plane": ["z", 0.5],
                                  "master": {"body": "a"}}
@@ -185,8 +186,9 @@ def test_refused_shared_nodes(comm):
                         "master": {"body": m}}
         b[f"{m}_on_base"] = {"type": "contact", "body": m, "plane": ["z", 0.5],
                              "master": {"body": "base"}}
-    with pytest.raises(SceneError, match=r"^contact pairs 'on_a' and 'on_c' share slave "
-                       r"nodes: a node may be the slave node of one pair only$"):
+    with pytest.raises(SceneError, match=r"^contact pair 'on_a' and contact pair 'on_c' share "
+                       r"slave nodes on a whole face: contact parts may share only the nodes "
+                       r"where their slave faces meet \(crosspoints\)$"):
         solve(scenes.validate(sc), comm)
 
 
@@ -272,8 +274,9 @@ def test_refused_a_body_its_pairs_do_not_hold(comm):
 
 
 def test_refused_foundation_beside_pairs(comm):
-    """The rigid foundation beside pairs: its normal an axis +e_k, and none of its nodes a
-    pair's slave node; one line naming the part."""
+    """The rigid foundation beside pairs: its normal an axis +e_k, and its part not on a
+    pair's whole slave face (crosspoints are the foundation's: test_pairs_crosspoints.py);
+    one line naming the part."""
     sc = three_blocks()
     sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
     sc["contact"]["foundation"] = {"normal": [0.0, 0.0, -1.0]}
