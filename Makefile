@@ -28,7 +28,8 @@ MPIRUN   := mpirun -n $(NP) --oversubscribe
 TESTS4   ?= tests/test_ranks.py tests/mesh/test_transfer.py tests/solvers/test_multigrid.py \
 	tests/solvers/test_jacobian.py tests/solvers/test_newton_globalisation.py \
 	tests/fem/test_element.py tests/solvers/test_mixed.py tests/fem/test_quadratic.py \
-	tests/solvers/test_line_smoother.py tests/fem/test_pairs.py
+	tests/solvers/test_line_smoother.py tests/fem/test_pairs.py \
+	tests/fem/test_pairs_crosspoints.py
 
 # $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
 # only when one is missing)
