@@ -225,13 +225,13 @@ REGISTRY = [
            "iteration first solves with the friction scaled to F1 at its largest, then at "
            "the full friction from there (friction continuation in one jump; not from a "
            "coarser mesh's answer, nor with -newton_continuation_factor 0)", "F1"),
-    Option("newton_tension_slip", 1.0, float, "while climbing to a larger friction (or "
-           "from a coarser mesh's answer), a contact node with friction above F0 that was "
-           "in contact at the last Newton step and is now open in a tension small against "
-           "its tangential traction (-a_n < F |z|) gets the slip piece's rows in the next "
-           "step (large F: the answer has nodes that slip at a pressure near 0, between "
-           "the held and the open states the iteration otherwise cycles between; inf: "
-           "never)", "F0"),
+    Option("newton_tension_slip", 1.0, float, "climbing to a larger friction (or from a "
+           "coarser answer), a node with friction above F0 in contact at the last step and "
+           "now open in a small tension (-a_n < F |z|) gets the slip piece's rows in the next "
+           "step (nodes that slip at a pressure near 0; inf: never)", "F0"),
+    Option("newton_direct_fallback", 100000, int, "where a step's iterative linear solve "
+           "fails (a fresh preconditioner too), the rest of the Newton loop solves directly "
+           "(MUMPS LU) if the system has at most N dofs; 0: never", "N"),
     Option("newton_pc_hold_slip", 1.0, float, "the preconditioner holds the slip nodes "
            "with friction above F1 (a slip row's normal part is F times the node's normal "
            "reaction row, which a smoother of the nodes' blocks cannot relax at a large "

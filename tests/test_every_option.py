@@ -81,6 +81,7 @@ CASES = {
     "newton_friction_start": ("10", {"friction": "100"}),
     "newton_tension_slip": ("0.5", {"friction": "1000"}),
     "newton_pc_hold_slip": ("inf", {"friction": "100"}),
+    "newton_direct_fallback": ("0", {}),
     "newton_ew_max": ("0.05", {}),
     "newton_pc_reuse": ("false", {}),
     "newton_pc_rebuild_its": ("5", {}),

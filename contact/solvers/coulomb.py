@@ -137,6 +137,7 @@ class CoulombNewton(LinearCounts, Loop):
         self.linear = NewtonKSP(self.comm, self.prefix, "gmres", (1e-8, 0.0, 1000),
                                 right=True)
         self.ksp = self.linear.ksp
+        self.direct_fallbacks = 0      # loops that went on with direct solves (fall_back_direct)
 
     def check_options(self):
         if not 0.0 < self.ew_max < 1.0:

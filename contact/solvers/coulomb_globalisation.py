@@ -13,11 +13,14 @@ runs/results/friction-large.md); the climb's steps pull nodes opened in a small 
 their slip piece (CoulombNewton.pulled_to_slip), and the Eisenstat-Walker forcing terms
 are at most -newton_ew_max / max(1, F).
 `load_stages`: where friction continuation cannot help (a body held by friction alone),
-the load path in sub-steps. `iterate`: the whole iteration from its start x. Each works
+the load path in sub-steps. `fall_back_direct`: where an iterative linear solve fails,
+direct solves from there on. `iterate`: the whole iteration from its start x. Each works
 on the iteration `nt` (a CoulombNewton): its residual (`nt._state`), Jacobian
 (`nt._system`) and linear solve (`nt._linear_solve`), its options and counters.
 """
+import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from contact.solvers.loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO
 from contact.solvers.newton_ksp import halving
@@ -188,6 +191,27 @@ def load_stages(nt, x, scale, it, can_friction):
         xd.destroy()
 
 
+def fall_back_direct(nt, it):
+    """After step `it`'s failed iterative linear solve (a fresh preconditioner too): the
+    rest of this Newton loop solves directly, MUMPS's LU of the true Jacobian (no slip
+    rows held), where the system has at most -newton_direct_fallback dofs; not the mixed
+    split's system, nor one direct already. Returns whether it switched."""
+    n = nt.A.getSize()[0]
+    if (nt.linear.direct or nt.split is not None or n > nt.direct_fallback
+            or not PETSc.Sys.hasExternalPackage("mumps")):
+        return False
+    nt.log(f"{' ' * nt.indent}{nt.title}: the linear solve of step {it} failed "
+           f"({nt.linear.hint('lu').split(';')[0]}); the rest of this loop solves directly "
+           f"(MUMPS LU, {n} dofs; -newton_direct_fallback)")
+    nt.ksp.setType(PETSc.KSP.Type.PREONLY)
+    pc = nt.ksp.getPC()
+    pc.setType(PETSc.PC.Type.LU)
+    pc.setFactorSolverType("mumps")
+    nt.pc_reuse, nt.jac.hold_slip = False, np.inf
+    nt.direct_fallbacks += 1
+    return True
+
+
 def stage(nt, x, scale, it):
     """Newton from x at the friction nt.F to nt._rtol (relative to scale); it: the
     iterations so far. Returns (it, reason): converged, DIVERGED_STAGNATION,
@@ -243,6 +267,9 @@ def stage(nt, x, scale, it):
                     # solved: the watchdog bites now (back to the watch point and
                     # backtrack along its step, which needs no new solve)
                     kw = nt.watchdog
+                    it -= 1
+                    continue
+                if fall_back_direct(nt, it):  # the step again, its system solved directly
                     it -= 1
                     continue
                 reason = DIVERGED_LINEAR_SOLVE

@@ -191,7 +191,9 @@ def test_held_slip_rows_cut_the_krylov_iterations():
     sc = paper_scene(nd=16, mode="newton")
     sc["contact"]["friction"] = 1e4
     held = solve(scenes.validate(sc))
-    with options.inserted({"newton_pc_hold_slip": "inf"}):
+    # (the plain run's GMRES breaks down at step 4: without -newton_direct_fallback 0 it
+    # would go on with direct solves, and count no Krylov iterations)
+    with options.inserted({"newton_pc_hold_slip": "inf", "newton_direct_fallback": "0"}):
         plain = solve(scenes.validate(sc))
     assert held.converged and plain.converged
     assert held.inner.iterations <= 10, held.inner.iterations
@@ -403,3 +405,27 @@ def test_large_friction_steps_at_most_twice_small_friction():
     with options.inserted(FULL_F):
         with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
             solve(beam(1000.0))
+
+
+@pytest.mark.skipif(not PETSc.Sys.hasExternalPackage("mumps"), reason="PETSc without MUMPS")
+def test_failed_linear_solve_falls_back_to_a_direct_one(capsys):
+    """-newton_direct_fallback: a Newton step whose GMRES fails, a fresh preconditioner too
+    (here made to by -newton_ksp_max_it 2), is solved again directly (MUMPS LU of the true
+    Jacobian) and the loop goes on that way: the same answer as the plain run (1e-9), one
+    line saying so, the KSP direct afterwards. With the fallback off (0) or the system
+    larger than N the same run ends DIVERGED_LINEAR_SOLVE with its hint. (The beam at
+    Nd 16, F = 1e6, where GMRES + multigrid breaks down at step 38-54: 38 steps and 8 s
+    with the fallback, the answer of an LU run from the start; stability-fbig.md.)"""
+    ref = solve(_beam(4, 0.3))
+    with options.inserted({"newton_ksp_max_it": "2"}):
+        pr = solve(_beam(4, 0.3))
+        out = capsys.readouterr().out
+        assert pr.converged and pr.inner.direct_fallbacks == 1 and pr.inner.linear.direct
+        assert out.count("the rest of this loop solves directly (MUMPS LU, 975 dofs") == \
+            (1 if pr.comm.tompi4py().rank == 0 else 0)
+        assert rel_err(fields(pr)[0], fields(ref)[0]) < 1e-9
+        for n in ("0", "974"):
+            with options.inserted({"newton_direct_fallback": n}):
+                with pytest.raises(ConvergenceError, match="DIVERGED_LINEAR_SOLVE.*try "
+                                   "-newton_ksp_type preonly"):
+                    solve(_beam(4, 0.3))
