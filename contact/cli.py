@@ -108,11 +108,15 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     fixed = sc["mesh"].get("grading") if isinstance(sc["mesh"].get("grading"), dict) else {}
     grade = auto or ([a for a in "xyz" if a not in fixed] if refine == "graded" else [])
     history, failure, info = [], None, None
-    # a file's run k: refined k times, every level solved (-c2f_levels, unless given)
     k = max(options.get("mesh_refine"), 2) if kind != "box" else None
     c2f = PETSc.Options().hasName("c2f_levels")
-    levels = (lambda: options.inserted({"mesh_refine": str(k), **(  # noqa: E731
-        {} if c2f else {"c2f_levels": str(k)})})) if k is not None else contextlib.nullcontext
+
+    def levels():
+        """A file's run k: refined k times, every level solved (-c2f_levels, unless given)."""
+        if k is None:
+            return contextlib.nullcontext()
+        return options.inserted({"mesh_refine": str(k), **({} if c2f else
+                                                           {"c2f_levels": str(k)})})
     if auto:
         with levels():
             sc, info = adapt.graded_scene(sc, comm, auto)

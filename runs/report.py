@@ -739,12 +739,17 @@ def runs_table(tot):
             L.append(f"| {r['nd']} | – | {r['status']}: {r.get('error') or ''} |"
                      + " – |" * 11)
             continue
-        v, er = r["values"], r.get("err", {})
         L.append(f"| {r['nd']} | {r['dofs']} | {r['wall']:.2f} | {r['setup']:.2f} | "
                  f"{r['solve']:.2f} | {r['newton']} | {r['residual']:.0e} | {r['rss']:.0f} | "
-                 f"{v['umax']:.6e} | {v['force']:.6f} | {v['energy']:.8e} | "
-                 f"{e(er.get('umax'))} | {e(er.get('force'))} | {e(er.get('energy'))} |")
+                 f"{value_cells(r)} |")
     return L
+
+
+def value_cells(r):
+    """A run's max abs(u), N, J and their errors: the last six cells of a runs table."""
+    v, er = r["values"], r.get("err", {})
+    return (f"{v['umax']:.6e} | {v['force']:.6f} | {v['energy']:.8e} | "
+            f"{e(er.get('umax'))} | {e(er.get('force'))} | {e(er.get('energy'))}")
 
 
 def quadratic_md(q1, q2, own):
@@ -831,11 +836,8 @@ def graded_md(q1, q2, graded, picture):
                 L.append(f"| {r['nd']} | {name} | {r['status']}: {r.get('error') or ''} |"
                          + " – |" * 8)
                 continue
-            v, er = r["values"], r.get("err", {})
             L.append(f"| {r['nd']} | {name} | {r['dofs']} | {r['wall']:.2f} | "
-                     f"{r['newton']} | {v['umax']:.6e} | {v['force']:.6f} | "
-                     f"{v['energy']:.8e} | {e(er.get('umax'))} | {e(er.get('force'))} | "
-                     f"{e(er.get('energy'))} |")
+                     f"{r['newton']} | {value_cells(r)} |")
     return L
 
 

@@ -52,6 +52,22 @@ def paper_scene(nd=2, **solver):
     return scenes.validate(sc)
 
 
+def gmsh_beam(nd=2, **mesh):
+    """The paper's beam on meshes/beam.geo (3 nd x nd x nd equal cubes: the box mesh's
+    cells), its parts the .geo's physical groups; mesh: more mesh keys (grading, element).
+    A scene file's data, not validated (a test writes it out or validates it)."""
+    sc = scenes.load(PAPER)
+    sc["mesh"] = {"type": "gmsh", "file": os.path.join(ROOT, "meshes", "beam.geo"), "nd": nd,
+                  **mesh}
+    sc["boundary"] = {"clamped": {"physical": "clamped", "type": "dirichlet"},
+                      "contact": {"physical": "contact", "type": "contact"},
+                      "end": {"physical": "end", "type": "traction",
+                              "traction": [10.0, 0.0, 20.0]},
+                      "top": {"physical": "top", "type": "traction",
+                              "traction": [0.0, 0.0, -30.0]}}
+    return sc
+
+
 def block_scene(parts, nd=2, young=1.0e3, poisson=0.3, friction=0.0, size=(1.0, 1.0, 1.0),
                 **solver):
     """Box [0,size] meshed nd^3 (per unit cells_per_nd 1) with the given boundary parts

@@ -9,7 +9,8 @@ import json
 
 import numpy as np
 import pytest
-from conftest import ROOT, cli, paper_scene, skip_in_parallel, solve
+import yaml
+from conftest import ROOT, cli, gmsh_beam, paper_scene, skip_in_parallel, solve
 from petsc4py import PETSc
 
 from contact import scene as scenes
@@ -279,16 +280,6 @@ def test_auto_grading_of_a_body(tmp_path):
     assert h[-(h.size // 4):].mean() < h[: h.size // 4].mean(), h
 
 
-GMSH_BEAM = """name: gmsh_beam
-mesh: {type: gmsh, file: %s/meshes/beam.geo, nd: 2}
-material: {young: 21.19e4, poisson: 0.277}
-boundary:
-  clamped: {physical: clamped, type: dirichlet}
-  contact: {physical: contact, type: contact}
-  end: {physical: end, type: traction, traction: [10.0, 0.0, 20.0]}
-  top: {physical: top, type: traction, traction: [0.0, 0.0, -30.0]}
-contact: {friction: 0.3}
-"""
 
 
 @skip_in_parallel
@@ -301,7 +292,7 @@ def test_auto_grading_of_a_gmsh_lattice(tmp_path):
     tolerance: measured 5.5e-7), the same answer (1e-6); aimed at the force too. (Without
     the local orders of the file's coarser level the points differ by 1e-2.)"""
     scene = tmp_path / "gmsh_beam.yaml"
-    scene.write_text(GMSH_BEAM % ROOT)
+    scene.write_text(yaml.safe_dump(gmsh_beam(2)))
     for q in ("energy", "force"):
         common = ["-mesh_grading", "auto", "-mesh_refine", 2, "-error_quantity", q]
         g, out = _summary(tmp_path / f"g{q}", ["-scene", scene, *common])

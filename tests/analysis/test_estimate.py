@@ -7,7 +7,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, block_scene, cli, paper_scene, skip_in_parallel, solve
+import yaml
+from conftest import (ROOT, block_scene, cli, gmsh_beam, paper_scene, skip_in_parallel,
+                      solve)
 
 from contact.analysis import estimate
 from contact import options
@@ -114,16 +116,6 @@ def test_error_target_doubles_nd_until_met(tmp_path, ranks):
     assert abs(s["contact_result"]["normal"] - q) / abs(q) <= 2 * t["runs"][-1]["relative_error"]
 
 
-GMSH_BEAM = """name: gmsh_beam
-mesh: {type: gmsh, file: %s/meshes/beam.geo, nd: 2}
-material: {young: 21.19e4, poisson: 0.277}
-boundary:
-  clamped: {physical: clamped, type: dirichlet}
-  contact: {physical: contact, type: contact}
-  end: {physical: end, type: traction, traction: [10.0, 0.0, 20.0]}
-  top: {physical: top, type: traction, traction: [0.0, 0.0, -30.0]}
-contact: {friction: 0.3}
-"""
 
 
 @skip_in_parallel
@@ -137,7 +129,7 @@ def test_error_target_on_a_gmsh_mesh(tmp_path, ranks):
     an estimated 0.076 %)."""
     import json
     scene = tmp_path / "gmsh_beam.yaml"
-    scene.write_text(GMSH_BEAM % ROOT)
+    scene.write_text(yaml.safe_dump(gmsh_beam(2)))
     p = _cli(["-scene", scene, "-error_target", 1e-3, "-error_quantity", "force",
               "-output_dir", tmp_path / "out", "-output_formats", "json"], ranks)
     assert p.returncode == 0, p.stderr

@@ -10,7 +10,8 @@ import copy
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT, cli, gather, only_in_parallel, paper_scene, rel_err, solve
+from conftest import (ROOT, cli, gather, gmsh_beam, only_in_parallel, paper_scene,
+                      rel_err, solve)
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -219,17 +220,9 @@ def test_bad_grading(bad, message):
 
 
 def _gmsh_beam(nd, element=None, **axes):
-    """meshes/beam.geo (3 nd x nd x nd equal cubes: the box's cells) as the paper's beam,
-    its parts the .geo's physical groups, graded by `axes`."""
-    sc = paper_scene(nd=nd, mode="newton")
-    sc["mesh"] = {"type": "gmsh", "file": f"{ROOT}/meshes/beam.geo", "nd": nd,
-                  "grading": axes, **({"element": element} if element else {})}
-    sc["boundary"] = {"clamped": {"physical": "clamped", "type": "dirichlet"},
-                      "contact": {"physical": "contact", "type": "contact"},
-                      "end": {"physical": "end", "type": "traction",
-                              "traction": [10.0, 0.0, 20.0]},
-                      "top": {"physical": "top", "type": "traction",
-                              "traction": [0.0, 0.0, -30.0]}}
+    """conftest's gmsh_beam graded by `axes`, the default solver."""
+    sc = gmsh_beam(nd, grading=axes, **({"element": element} if element else {}))
+    sc["solver"]["mode"] = "newton"
     return scenes.validate(sc)
 
 
