@@ -17,12 +17,15 @@ u_m). The contact set's weight at j is its first pair's D_j alone (`weight_off`)
 
 a_kj: the share of j's lumped weight on each slave face of the later pair at j (the
 triangle at j's corner) goes to the face's corners beside j that are no crosspoints (the
-opposite corner where both are). The rigid foundation's contact nodes beside the pairs
-come first of all (`taken`: a block on the foundation against a wall). A pair's force
+opposite corner where both are). The q2 element's 9-node faces (fem/mortar_q2.py): the
+face's share (its area's) goes to the nodes next to j on the face's 3 x 3 grid that are no
+crosspoints (a corner's or an edge node's inner neighbour), else one diagonal step away.
+The rigid foundation's contact nodes beside the pairs come first of all (`taken`: a block
+on the foundation against a wall). A pair's force
 (analysis/stress.py: by_pair) weighs lambda_k by int psi_k' = D_k + sum_j a_kj D_j.
 Refused (PairError, one line): a node on three contact parts' slave faces, a face of the
-later pair whose corners are all crosspoints (two parts on one slave face), a neighbour k
-the master does not cover, the q2 element's 9-node faces.
+later pair whose corners (q2: nodes) are all crosspoints (two parts on one slave face), a
+neighbour k the master does not cover.
 """
 import numpy as np
 
@@ -55,6 +58,36 @@ def _shares(part, isx, first):
     return kk, jj, aa
 
 
+#: the 9-node face's nodes on a 3 x 3 grid (fem/mortar_q2.py's order: corners, edges, centre)
+GRID9 = np.array([[0, 0], [2, 0], [2, 2], [0, 2], [1, 0], [2, 1], [1, 2], [0, 1], [1, 1]])
+#: NEAR9[i]: the nodes next to node i on the grid (one step), then those one diagonal away
+_d = np.abs(GRID9[:, None, :] - GRID9[None, :, :]).sum(axis=2)
+_c = np.abs(GRID9[:, None, :] - GRID9[None, :, :]).max(axis=2)
+NEAR9 = ((_d == 1), (_d == 2) & (_c == 1))
+
+
+def _shares9(part, isx, first):
+    """_shares for the q2 element's 9-node faces: a crosspoint j's weight on each face
+    (its share of j's lumped weight, the face's area times j's Simpson weight there, the
+    same weight on every face of j: corner or edge node) goes to the face's nodes next to
+    j on its 3 x 3 grid that are no crosspoints, else to those one diagonal step away."""
+    fs, xs = part["faces"], part["xs"]
+    f, i = np.nonzero(isx[fs])
+    j = fs[f, i]
+    ok = [~isx[fs[f]] & near[i] for near in NEAR9]
+    use = np.where(ok[0].any(axis=1, keepdims=True), ok[0], ok[1])
+    if not use.any(axis=1).all():
+        raise PairError(f"{first} and contact pair {part['name']!r} share slave nodes on a "
+                        f"whole face: contact parts may share only the nodes where their "
+                        f"slave faces meet (crosspoints)")
+    c = xs[fs[f, :4]]
+    area = 0.5 * np.linalg.norm(np.cross(c[:, 2] - c[:, 0], c[:, 3] - c[:, 1]), axis=1)
+    w = area / np.bincount(j, area, minlength=xs.shape[0])[j]
+    a = w[:, None] * use / use.sum(axis=1, keepdims=True)
+    jj = np.repeat(j, 9).reshape(-1, 9)
+    return fs[f][use], jj[use], a[use]
+
+
 def take(parts, taken=None):
     """Drops each crosspoint from the later pairs' parts (fem/pairs.py's _surface dicts,
     changed in place: sid, ok, gaps, E's entries, rows) and returns per such pair the moved
@@ -72,16 +105,13 @@ def take(parts, taken=None):
         seen = np.union1d(seen, b["sid"])
         if not isx.any():
             continue
-        if b["faces"].shape[1] != 4:
-            raise PairError(f"contact pair {b['name']!r}: crosspoints (nodes on two pairs' "
-                            f"slave faces) need the q1 element; use -element q1")
         if any(np.isin(b["sid"][isx], np.intersect1d(p, q)).any()
                for i, p in enumerate(orig[:n + before]) for q in orig[i + 1:n + before]):
             raise PairError(f"contact pair {b['name']!r}: a node lies on three contact "
                             f"parts' slave faces")
         first = next(m for m, o in zip(names[:n + before], orig)
                      if np.isin(o, b["sid"]).any())
-        k, j, a = _shares(b, isx, first)
+        k, j, a = (_shares if b["faces"].shape[1] == 4 else _shares9)(b, isx, first)
         use = b["ok"][j]                        # an uncovered j has no multiplier to move
         k, j, a = k[use], j[use], a[use]
         if not b["ok"][k].all():

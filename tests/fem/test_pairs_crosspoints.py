@@ -49,12 +49,25 @@ def corner(friction=0.0, young=(1.0, 1.0, 1.0), cells=((4, 4, 2), (5, 5, 3), (2,
             "solver": {"mode": "newton", "newton_rtol": 1e-12}}
 
 
-@pytest.mark.parametrize("young", [(1.0, 1.0, 1.0), (3.0, 1.0, 2.0)])
-def test_patch_crosspoint(comm, young):
+#: per element: the output mesh's cells of the base, block and wall; the slave nodes of
+#: the bottom and of the side off the edge (the block's 5 x 5 x 3 cells)
+COUNTS = {"q1": ([32, 75, 24], 6 * 6 + 6 * 3), "q2": ([256, 600, 192], 11 * 11 + 11 * 6)}
+
+
+def _element(sc, element):
+    if element != "q1":
+        sc["mesh"] = {"element": element}
+    return sc
+
+
+@pytest.mark.parametrize("young,element", [((1.0, 1.0, 1.0), "q1"), ((3.0, 1.0, 2.0), "q1"),
+                                           ((3.0, 1.0, 2.0), "q2")])
+def test_patch_crosspoint(comm, young, element):
     """Uniform stresses in the three bodies to 1e-8, the multiplier Q at every slave node
     of the bottom (the crosspoint edge too) and P at every one of the side, each pair's
-    force its pressure times its face's area (1)."""
-    pr = solve(scenes.validate(corner(young=young)), comm)
+    force its pressure times its face's area (1); q2: the 9-node faces' crosspoints (the
+    corner and edge nodes of the edge) taken in by their grid neighbours."""
+    pr = solve(scenes.validate(_element(corner(young=young), element)), comm)
     assert pr.converged
     sig = np.asarray(stress.body_stress(pr)["cell"])      # xx, yy, zz, yz, xz, xy
     mpi = pr.comm.tompi4py()
@@ -64,12 +77,13 @@ def test_patch_crosspoint(comm, young):
     which = np.argmin(off, axis=1)
     assert off.min(axis=1).max(initial=0.0) < 1e-8 * Q
     assert np.abs(sig[:, [1, 3, 4, 5]]).max(initial=0.0) < 1e-8 * Q
-    assert list(mpi.allreduce(np.bincount(which, minlength=3))) == [32, 75, 24]
+    cells, n_lam = COUNTS[element]
+    assert list(mpi.allreduce(np.bincount(which, minlength=3))) == cells
     lam = pr.cs.local_array(pr.l)
     X = pr.cs.coordinates
     side = np.abs(X[:, 0] - 1.0) < 1e-12
     bottom = np.abs(X[:, 2] - 1.0) < 1e-12
-    assert mpi.allreduce(int(lam.size)) == 6 * 6 + 6 * 3          # the edge's 6: bottom's
+    assert mpi.allreduce(int(lam.size)) == n_lam                  # the edge's: bottom's
     assert np.all(np.abs(lam[bottom] - Q) < 1e-8 * Q)
     assert np.all(np.abs(lam[side & ~bottom] - P) < 1e-8 * P)
     from contact.io import report
@@ -92,8 +106,9 @@ def _alone(sc):
     return {**sc, "name": "alone", "bodies": {"block": sc["bodies"]["block"]}, "boundary": b}
 
 
-@pytest.mark.parametrize("shear", [0.0, 0.2])
-def test_stiff_limit(comm, shear):
+@pytest.mark.parametrize("shear,element", [(0.0, "q1"), (0.2, "q1"), (0.0, "q2"),
+                                           (0.2, "q2")])
+def test_stiff_limit(comm, shear, element):
     """Base and wall 1e6 times stiffer than the block (the wall's back held along x): the
     block's displacement that of the block on rollers (Dirichlet u_z = 0 on its bottom,
     u_x = 0 on its side), to 1e-5 of max |u| under the uniform load. With a shear 0.2 Q
@@ -101,11 +116,12 @@ def test_stiff_limit(comm, shear):
     plane (every contact node stays closed, as the rollers hold them), to the weak side
     constraint's error: at the crosspoint edge the side pair holds only the mean u_k +
     c u_j (the neighbour k's row), not u_j itself; measured 1.5e-2 of max |u| with the
-    block's 5 x 5 x 3 cells, 1.8e-3 with 10 x 10 x 6 (here; the bound 3e-3). (Without the
-    left push the side opens near the edge, where rollers would pull: no such limit.)"""
+    block's 5 x 5 x 3 cells, 1.8e-3 with 10 x 10 x 6 (here; the bound 3e-3); q2: 2.6e-3
+    with 5 x 5 x 3 (here), 3.1e-4 with 10 x 10 x 6. (Without the left push the side opens
+    near the edge, where rollers would pull: no such limit.)"""
     cells = ((4, 4, 2), (5, 5, 3), (2, 3, 4))
-    sc = corner(young=(1e6, 1.0, 1e6), cells=[[2 * c for c in n] for n in cells] if shear
-                else cells)
+    sc = _element(corner(young=(1e6, 1.0, 1e6), cells=[[2 * c for c in n] for n in cells]
+                         if shear and element == "q1" else cells), element)
     b = sc["boundary"]
     b["push"] = {"type": "dirichlet", "body": "wall", "plane": ["x", 2.0],
                  "components": ["x"]}
@@ -166,9 +182,8 @@ def test_shipped_block_on_base_against_wall(comm):
 
 def test_refusals(comm):
     """What stays refused, each in one line: a node on three pairs' slave faces (the
-    block's corner against a second wall behind it), crosspoints with the q2 element (two
-    pairs on one whole slave face, and the foundation's part on a pair's whole slave face:
-    test_pairs_many.py)."""
+    block's corner against a second wall behind it), with q1 and q2 (two pairs on one whole
+    slave face, and the foundation's part on a pair's whole slave face: test_pairs_many.py)."""
     sc = corner()
     sc["bodies"]["back"] = {"lower": [0, 1, 1], "upper": [1, 2, 2], "cells": [3, 2, 2],
                             "material": {"young": 1.0, "poisson": 0.3}}
@@ -176,22 +191,19 @@ def test_refusals(comm):
     b["on_back"] = {"type": "contact", "body": "block", "plane": ["y", 1.0],
                     "master": {"body": "back"}}
     b["back_y"] = {"type": "dirichlet", "body": "back", "plane": ["y", 2.0]}
-    with pytest.raises(SceneError, match=r"^contact pair 'on_back': a node lies on three "
-                       r"contact parts' slave faces$"):
-        solve(scenes.validate(sc), comm)
-    sc = corner()
-    sc["mesh"] = {"element": "q2"}
-    with pytest.raises(SceneError, match=r"^contact pair 'on_wall': crosspoints \(nodes on "
-                       r"two pairs' slave faces\) need the q1 element; use -element q1$"):
-        solve(scenes.validate(sc), comm)
+    for element in ("q1", "q2"):
+        with pytest.raises(SceneError, match=r"^contact pair 'on_back': a node lies on "
+                           r"three contact parts' slave faces$"):
+            solve(scenes.validate(_element(copy.deepcopy(sc), element)), comm)
 
 
-def test_patch_on_the_foundation(comm):
+@pytest.mark.parametrize("element", ["q1", "q2"])
+def test_patch_on_the_foundation(comm, element):
     """The block on the rigid foundation (z = 1, +z) instead of the base, against the wall:
     the foundation keeps the crosspoints, the wall pair's dual basis takes them in; the
     multiplier Q on the bottom (the edge too) and P on the side to 1e-8, the block's
     stress diag(-P, 0, -Q)."""
-    sc = corner()
+    sc = _element(corner(), element)
     sc["bodies"].pop("base")
     b = sc["boundary"]
     for k in ("on_base", "bottom"):
@@ -203,8 +215,8 @@ def test_patch_on_the_foundation(comm):
     lam, X = pr.cs.local_array(pr.l), pr.cs.coordinates
     side, bottom = np.abs(X[:, 0] - 1.0) < 1e-12, np.abs(X[:, 2] - 1.0) < 1e-12
     mpi = pr.comm.tompi4py()
-    assert mpi.allreduce(int((bottom & side).sum())) == 6       # the edge: the foundation's
-    assert mpi.allreduce(int(lam.size)) == 6 * 6 + 6 * 3
+    assert mpi.allreduce(int((bottom & side).sum())) == {"q1": 6, "q2": 11}[element]
+    assert mpi.allreduce(int(lam.size)) == COUNTS[element][1]   # the edge: the foundation's
     assert np.all(np.abs(lam[bottom] - Q) < 1e-8 * Q)
     assert np.all(np.abs(lam[side & ~bottom] - P) < 1e-8 * P)
     sig = np.asarray(stress.body_stress(pr)["cell"])
