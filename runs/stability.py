@@ -349,14 +349,16 @@ F_BIG = ("0.3", "10", "100", "1000", "1e4", "1e6")
 
 def cases_fbig():
     """The default solver from F = 0.3 to 1e6 (target: converged, Newton steps at most twice
-    F = 0.3's on the same mesh): the paper's beam at Nd = 4, 8, 12, 16 (and 32 at F = 0.3
-    and 1000), the friction-held block (block_shear.yaml, Nd = 8) and Hertz with friction
+    F = 0.3's on the same mesh): the paper's beam at Nd = 4, 8, 12, 16 (20 at F = 0.3, 100
+    and 300, 32 at F = 0.3 and 1000), the friction-held block (block_shear.yaml, Nd = 8) and Hertz with friction
     (hertz.yaml, its own mesh)."""
     blk, hz = (["-scene", os.path.join(SCENES, f)] for f in ("block_shear.yaml",
                                                              "hertz.yaml"))
     out = [Case(f"fbig-beam-nd{n}-F{f}", f"beam, F = {f}, Nd = {n}",
                 nd(n) + ["-friction", f] + NEWTON)
            for n in (4, 8, 12, 16) for f in F_BIG]
+    out += [Case(f"fbig-beam-nd20-F{f}", f"beam, F = {f}, Nd = 20",
+                 nd(20) + ["-friction", f] + NEWTON) for f in ("0.3", "100", "300")]
     out += [Case(f"fbig-beam-nd32-F{f}", f"beam, F = {f}, Nd = 32",
                  nd(32) + ["-friction", f] + NEWTON) for f in ("0.3", "1000")]
     out += [Case(f"fbig-block-F{f}", f"friction-held block, F = {f}, Nd = 8",
