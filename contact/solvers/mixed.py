@@ -95,7 +95,8 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: residual) takes 3.4 ms against AIJ's 5.9 (A_g of Hertz nd 3, 13 M nonzeros), its SOR
 #: sweep about AIJ's (16 against 18 ms: AIJ's inode SOR inverts the nodes' 3 x 3 blocks
 #: too); PETSc (3.18) forms no MatPtAP of BAIJ, so its coarse levels are products of an
-#: AIJ copy, made and freed at each u-block set-up (coarse_operators). Hertz nd 3, 1 rank:
+#: AIJ copy, made and freed at each u-block set-up (coarse_operators); one rank only
+#: (Split.blocked). Hertz nd 3, 1 rank:
 #: a Krylov iteration 15 % cheaper (stability-notes.md, "BAIJ u-block")
 SOR_ELEMENTS = ("q2p1",)
 
@@ -156,9 +157,11 @@ class Split:
         #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
         #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
         self.reuse_blocks = self.sor
-        #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u): its coarse levels
-        #: then Galerkin products of an AIJ copy (coarse_operators)
-        self.blocked = self.sor and mg is not None and blocked_u()
+        #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u), on one rank: its
+        #: coarse levels then Galerkin products of an AIJ copy (coarse_operators). Not on
+        #: more (PETSc 3.18: the Newton iteration's restored contact rows of an MPIBAIJ A_g,
+        #: after MatZeroRows, are "new nonzeros", tests/solvers/test_mixed.py on 2 ranks)
+        self.blocked = self.sor and mg is not None and comm.getSize() == 1 and blocked_u()
         self._coarse = {}                        # u-block KSP handle: its coarse Mats
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
