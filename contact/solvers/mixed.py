@@ -95,8 +95,7 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: residual) takes 3.4 ms against AIJ's 5.9 (A_g of Hertz nd 3, 13 M nonzeros), its SOR
 #: sweep about AIJ's (16 against 18 ms: AIJ's inode SOR inverts the nodes' 3 x 3 blocks
 #: too); PETSc (3.18) forms no MatPtAP of BAIJ, so its coarse levels are products of an
-#: AIJ copy, made and freed at each u-block set-up (coarse_operators); one rank only
-#: (Split.blocked). Hertz nd 3, 1 rank:
+#: AIJ copy, made and freed at each u-block set-up (coarse_operators). Hertz nd 3, 1 rank:
 #: a Krylov iteration 15 % cheaper (stability-notes.md, "BAIJ u-block")
 SOR_ELEMENTS = ("q2p1",)
 
@@ -157,11 +156,9 @@ class Split:
         #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
         #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
         self.reuse_blocks = self.sor
-        #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u), on one rank: its
-        #: coarse levels then Galerkin products of an AIJ copy (coarse_operators). Not on
-        #: more (PETSc 3.18: the Newton iteration's restored contact rows of an MPIBAIJ A_g,
-        #: after MatZeroRows, are "new nonzeros", tests/solvers/test_mixed.py on 2 ranks)
-        self.blocked = self.sor and mg is not None and comm.getSize() == 1 and blocked_u()
+        #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u): its coarse levels
+        #: then Galerkin products of an AIJ copy (coarse_operators)
+        self.blocked = self.sor and mg is not None and blocked_u()
         self._coarse = {}                        # u-block KSP handle: its coarse Mats
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
@@ -274,7 +271,12 @@ class Split:
         pc, mats = ku.getPC(), self._coarse.get(ku.handle)
         if pc.getType() != PETSc.PC.Type.MG or (mats is not None and not refresh):
             return
-        A = op = self.Ag.convert(PETSc.Mat.Type.AIJ, PETSc.Mat())
+        # (MatConvert of an MPIBAIJ disassembles and reassembles it, which squeezes its
+        # off-process pattern: its contact rows then fail as new nonzeros; so a copy's)
+        src = self.Ag if self.Ag.getComm().getSize() == 1 else self.Ag.duplicate(copy=True)
+        A = op = src.convert(PETSc.Mat.Type.AIJ, PETSc.Mat())
+        if src is not self.Ag:
+            src.destroy()
         for k, j in enumerate(range(pc.getMGLevels() - 1, 0, -1)):  # P_j: j - 1 -> j
             op = op.ptap(self.mg.interpolation(j), result=None if mats is None else mats[k])
             if mats is None:                     # (later the same Mats, new values)
