@@ -95,8 +95,10 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: residual) takes 3.4 ms against AIJ's 5.9 (A_g of Hertz nd 3, 13 M nonzeros), its SOR
 #: sweep about AIJ's (16 against 18 ms: AIJ's inode SOR inverts the nodes' 3 x 3 blocks
 #: too); PETSc (3.18) forms no MatPtAP of BAIJ, so its coarse levels are products of an
-#: AIJ copy, made and freed at each u-block set-up (coarse_operators). Hertz nd 3, 1 rank:
-#: a Krylov iteration 15 % cheaper (stability-notes.md, "BAIJ u-block")
+#: AIJ copy, made and freed at each u-block set-up (coarse_operators). Hertz, nu = 0.4999
+#: and 0.4999999, nd 2 and 3, 1 and 2 ranks: KSPSolve's time a Krylov iteration 11-30 %
+#: less, as many iterations a Newton step; nd 3, 0.4999, 1 rank: solve 18.1 -> 17.2 s
+#: (7 Newton steps against 6), 2 ranks 12.0 -> 10.5 s (stability-notes.md, "BAIJ u-block")
 SOR_ELEMENTS = ("q2p1",)
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
