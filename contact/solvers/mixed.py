@@ -264,9 +264,10 @@ class Split:
     def coarse_operators(self, ksp, refresh=True):
         """The coarse levels' operators of ksp's u-block for a BAIJ A_g (blocked; nothing
         otherwise): Galerkin products P^T A P of an AIJ copy of A_g as it is now (its
-        contact rows too), level by level, the copy freed, as PETSc's -pc_mg_galerkin would
-        form them at the u-block's set-up; coulomb.py calls this before each fresh set-up of
-        ksp's preconditioner and (refresh False: only where not formed yet) before a solve."""
+        contact rows too), level by level, the copy then freed, as PETSc's
+        -pc_mg_galerkin would form them at the u-block's set-up; coulomb.py calls this
+        before each fresh set-up of ksp's preconditioner and (refresh False: only where
+        not formed yet) before a solve."""
         if not self.blocked:
             return
         ku = ksp.getPC().getFieldSplitSubKSP()[0]
@@ -280,10 +281,17 @@ class Split:
         if src is not self.Ag:
             src.destroy()
         for k, j in enumerate(range(pc.getMGLevels() - 1, 0, -1)):  # P_j: j - 1 -> j
-            op = op.ptap(self.mg.interpolation(j), result=None if mats is None else mats[k])
-            if mats is None:                     # (later the same Mats, new values)
+            C = op.ptap(self.mg.interpolation(j))
+            # kept as a plain copy: a product Mat holds a reference to its A (the AIJ
+            # copy would live on); later set-ups copy their values into the same Mats
+            if mats is None:
+                op = C.duplicate(copy=True)
                 self._coarse.setdefault(ku.handle, []).append(op)
                 pc.getMGSmoother(j - 1).setOperators(op)
+            else:
+                op = mats[k]
+                C.copy(op, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            C.destroy()
         A.destroy()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):

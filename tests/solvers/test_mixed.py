@@ -216,8 +216,9 @@ def test_q2p1_u_block_one_cycle_kept_between_steps():
     level factored once per fresh set-up, not at every Newton step (before: 7 of 7 steps
     on the pressed, sheared block at nu = 0.4999). Its Krylov iterations stay bounded
     (measured 102, 95, 128, 140 on 1-4 ranks, 7-8 steps: the SOR sweeps are each rank's
-    own; with an AIJ A_g, -mat_type aij: 91, 108, 128, 141; full + two sweeps: 50 on 1 rank; a preconditioner that fails to solve the u-block
-    or the pressure takes hundreds)."""
+    own; with an AIJ A_g, -mat_type aij: 91, 108, 128, 141; full + two sweeps: 50 on 1
+    rank; a preconditioner that fails to solve the u-block or the pressure takes
+    hundreds)."""
     sc = _bbar_block(F_VARYING, 0.4999)
     sc["mesh"]["element"] = "q2p1"
     PETSc.Log.begin()                        # (the events' counts)
