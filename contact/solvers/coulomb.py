@@ -319,12 +319,15 @@ class CoulombNewton(LinearCounts, Loop):
             self.split.M.assemble()               # its blocks' contact rows changed
             b, sol = self.split.vecs(rhs, self.dx)
             self.split.p.set(0.0)
+            self.split.coarse_operators(self.ksp, refresh=False)   # (a BAIJ A_g's first)
         else:
             self.ksp.setOperators(self.jac.op, K)     # (op: K, or K + the held slip rows)
             b, sol = rhs, self.dx
         self.ksp.setTolerances(rtol=rtol)
         reuse = self.pc_reuse and self.pc_setups > 0 and not self._rebuild
-        ok = self.linear.solve(b, sol, reuse, None if self.mg is None else
+        ok = self.linear.solve(b, sol, reuse,
+                               (lambda: self.split.coarse_operators(self.ksp))
+                               if self.split is not None else None if self.mg is None else
                                lambda: self.mg.set_operators(self.ksp, K, self.jac.D))
         self._rebuild = self.linear.last_iterations > self.pc_rebuild_its
         if self.split is not None:

@@ -47,7 +47,8 @@ multigrid 68, 78, 111, 125.
 LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto leaves q1) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
 iterations at lambda_g / mu = 0, 0.5, 1.5, 4, 10, 25, 60 (GAMG on K alone: no convergence
-in 1000). Memory: A_g is a second matrix of A's size, G and Gq^T about a tenth of it each.
+in 1000). Memory: A_g is a second matrix of A's size (q2p1: BAIJ, 8.4 B a nonzero against
+AIJ's 12; SOR_ELEMENTS), G and Gq^T about a tenth of it each.
 """
 import numpy as np
 from petsc4py import PETSc
@@ -88,7 +89,16 @@ BBAR_REFUSE_LAMBDA_MU = 1e6
 #: multigrid with a kept preconditioner (reuse_blocks: its coarse LU factored once, not at
 #: every Newton step): Hertz q2p1 nu = 0.4999, 1 rank, nd 3: 108 -> 226 Krylov
 #: iterations, solve 25.4 -> 16.6 s; nd 2 63 -> 162, 11.3 -> 8.5 s (stability-notes.md,
-#: "one V-cycle"; full + one sweep: 265, 29.6 s; Chebyshev + lower: 830, 34.9 s)
+#: "one V-cycle"; full + one sweep: 265, 29.6 s; Chebyshev + lower: 830, 34.9 s). Their
+#: A_g is BAIJ (Split.blocked; not with -mat_type, -P_fieldsplit_u_pc_type or
+#: -P_fieldsplit_u_pc_mg_galerkin): BAIJ's MatMult (the outer operator's, the multigrid's
+#: residual) takes 3.4 ms against AIJ's 5.9 (A_g of Hertz nd 3, 13 M nonzeros), its SOR
+#: sweep about AIJ's (16 against 18 ms: AIJ's inode SOR inverts the nodes' 3 x 3 blocks
+#: too); PETSc (3.18) forms no MatPtAP of BAIJ, so its coarse levels are products of an
+#: AIJ copy, made and freed at each u-block set-up (coarse_operators). Hertz, nu = 0.4999
+#: and 0.4999999, nd 2 and 3, 1 and 2 ranks: KSPSolve's time a Krylov iteration 11-30 %
+#: less, as many iterations a Newton step; nd 3, 0.4999, 1 rank: solve 18.1 -> 17.2 s
+#: (7 Newton steps against 6), 2 ranks 12.0 -> 10.5 s (stability-notes.md, "BAIJ u-block")
 SOR_ELEMENTS = ("q2p1",)
 
 #: the fieldsplit's defaults under its KSP's prefix (-newton_, -elastic_; command line wins)
@@ -148,11 +158,15 @@ class Split:
         #: a kept preconditioner (-newton_pc_reuse) keeps the u-block's multigrid too
         #: (SOR_ELEMENTS; else its coarse LU is refactored at every Newton step)
         self.reuse_blocks = self.sor
+        #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u): its coarse levels
+        #: then Galerkin products of an AIJ copy (coarse_operators)
+        self.blocked = self.sor and mg is not None and blocked_u()
+        self._coarse = {}                        # u-block KSP handle: its coarse Mats
         lam_g = LAMBDA_SPLIT * mu
         self.kappa = lam - lam_g
         Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
                                     mat["poisson"], frame=disc.frame, element=disc.element,
-                                    lam=lam_g, lattice=disc.lattice)
+                                    lam=lam_g, lattice=disc.lattice, blocked=self.blocked)
         b = Ag.createVecLeft()
         b.set(0.0)
         # A_g's own mean diagonal on the eliminated rows (A's, ~ lambda, would be up to
@@ -219,7 +233,8 @@ class Split:
         ksp.setFromOptions, and the pressure block's preconditioner S_p unless the command
         line names one: -P_pc_fieldsplit_schur_precondition; setting the split's type
         resets it), then the PC's set-up, when the splits read their options. kw: more
-        option defaults (name without the prefix)."""
+        option defaults (name without the prefix). A BAIJ A_g's coarse operators are
+        coarse_operators' (before the first solve)."""
         ksp.setOperators(self.M)
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.FIELDSPLIT)
@@ -239,9 +254,45 @@ class Split:
             pc.setUp()
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
-            with options.inserted(mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT,
-                                           sor=self.sor)):
+            defaults = mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT, sor=self.sor)
+            if self.blocked:                     # (PETSc 3.18 has no MatPtAP of BAIJ)
+                defaults = {k: v for k, v in defaults.items() if "galerkin" not in k}
+                defaults[ku.getOptionsPrefix() + "pc_mg_galerkin"] = "none"
+            with options.inserted(defaults):
                 ku.setFromOptions()
+
+    def coarse_operators(self, ksp, refresh=True):
+        """The coarse levels' operators of ksp's u-block for a BAIJ A_g (blocked; nothing
+        otherwise): Galerkin products P^T A P of an AIJ copy of A_g as it is now (its
+        contact rows too), level by level, the copy then freed, as PETSc's
+        -pc_mg_galerkin would form them at the u-block's set-up; coulomb.py calls this
+        before each fresh set-up of ksp's preconditioner and (refresh False: only where
+        not formed yet) before a solve."""
+        if not self.blocked:
+            return
+        ku = ksp.getPC().getFieldSplitSubKSP()[0]
+        pc, mats = ku.getPC(), self._coarse.get(ku.handle)
+        if pc.getType() != PETSc.PC.Type.MG or (mats is not None and not refresh):
+            return
+        # (MatConvert of an MPIBAIJ disassembles and reassembles it, which squeezes its
+        # off-process pattern: its contact rows then fail as new nonzeros; so a copy's)
+        src = self.Ag if self.Ag.getComm().getSize() == 1 else self.Ag.duplicate(copy=True)
+        A = op = src.convert(PETSc.Mat.Type.AIJ, PETSc.Mat())
+        if src is not self.Ag:
+            src.destroy()
+        for k, j in enumerate(range(pc.getMGLevels() - 1, 0, -1)):  # P_j: j - 1 -> j
+            C = op.ptap(self.mg.interpolation(j))
+            # kept as a plain copy: a product Mat holds a reference to its A (the AIJ
+            # copy would live on); later set-ups copy their values into the same Mats
+            if mats is None:
+                op = C.duplicate(copy=True)
+                self._coarse.setdefault(ku.handle, []).append(op)
+                pc.getMGSmoother(j - 1).setOperators(op)
+            else:
+                op = mats[k]
+                C.copy(op, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            C.destroy()
+        A.destroy()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):
         """A KSP for K u = b through M (a scene without contact: fem.elasticity_ksp's
@@ -254,6 +305,7 @@ class Split:
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
         self.configure(ksp)
+        self.coarse_operators(ksp)
         return ksp
 
     def vecs(self, rhs, dx):
@@ -262,8 +314,18 @@ class Split:
                 PETSc.Vec().createNest([dx, self.p], comm=dx.getComm()))
 
     def destroy(self):
-        for o in (self.M, self.Ag, self.G, self.Gt, self.C, self.Sp, self.zp, self.p):
+        for o in (self.M, self.Ag, self.G, self.Gt, self.C, self.Sp, self.zp, self.p,
+                  *(M for mats in self._coarse.values() for M in mats)):
             o.destroy()
+
+
+def blocked_u():
+    """Whether a SOR-smoothed u-block's A_g may be BAIJ (Split.blocked): not where the
+    command line names a Mat type or the u-block's preconditioner or Galerkin setting."""
+    opts = PETSc.Options()
+    return options.requested_type("mat_type") is None and not any(
+        opts.hasName(p + "fieldsplit_u_" + k) for p in multigrid.PREFIXES
+        for k in ("pc_type", "pc_mg_galerkin"))
 
 
 def split_for(disc, mode="auto", pc_given=False, mg=None):

@@ -22,7 +22,8 @@ Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
       nonzero against AIJ's 12, and at Nd = 40 on 2 ranks its MatMult takes 12.5 ms
       against 36 ms and its assembly 0.45 s against 1.9 s (runs/results/scaling.md).
   AIJ (-mat_type aij, q2, bbar and the mixed split, the paper's loops): PETSc's Galerkin
-      products at every level (-pc_mg_galerkin both).
+      products at every level (-pc_mg_galerkin both). q2p1's u-block A_g is BAIJ, its
+      coarse levels products of an AIJ copy (mixed.Split.coarse_operators).
 
 Smoothing: Chebyshev with point-block Jacobi (the nodes' 3 x 3 blocks; point Jacobi with
 GPU Vec types: level_pc_type), or on a level whose cells are thin (an edge shorter than
