@@ -15,8 +15,16 @@ operator over those lines (a thin direction's line has the cells' count through 
 thickness + 1 nodes; a node without short edges is its own 3 x 3 block, as point-block
 Jacobi has it).
 
-The blocks are found once per level from its mesh (`line_blocks`, vectorised: a minimum
-label spread along the short edges); the inverse is formed at each set-up of the level's
+The lines are straight chains of nodes: each node takes the direction of its shortest edge,
+and a short edge joins its ends where it lies along both ends' directions (`line_blocks`,
+vectorised: a minimum label spread along those edges; a chain longer than MAX_LINE_NODES cut
+into pieces). On a plate that is every column across the thickness. On a mesh graded toward
+an edge or a contact (mesh.grading, -mesh_grading auto) the thin direction turns from place
+to place and cells near the edge are thin in two directions: joining every short edge
+there made planes (the level then fell back to point-block Jacobi), chains keep lines. The
+paper's beam graded for max |u| (q2, Nd 12, 1 rank): 75 Krylov iterations instead of 233,
+the solve 30 s instead of 62; the Hertz box graded for N (Nd 32): 76 instead of 173
+(runs/results/line-smoother.md). The blocks are found once per level from its mesh; the inverse is formed at each set-up of the level's
 operator (the Newton Jacobian changes its contact rows) from the rank's diagonal block
 (rows and columns it owns: a line cut by the partition is two lines), the blocks of equal
 size inverted together (numpy.linalg.inv; again only the blocks whose values changed), and
@@ -40,9 +48,10 @@ from contact.mesh.hierarchy import owned_blocks
 
 #: the Newton forcing terms' cap on a body with lines: EW_ASPECT / (largest cell aspect)
 EW_ASPECT = 0.1
-#: a level whose lines would hold more nodes than this is smoothed point by point (a cell
-#: thin in two directions joins whole planes)
+#: a line longer than this is cut into pieces (each piece one block of the smoother)
 MAX_LINE_NODES = 64
+#: an edge joins a line where it lies along its ends' directions: |cos| above this
+ALONG = 0.9
 #: the 12 edges of the hexahedron: vertex pairs (in HEX_REF order) one coordinate apart
 HEX_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
                       if np.count_nonzero(mesh.HEX_REF[a] != mesh.HEX_REF[b]) == 1],
@@ -50,25 +59,45 @@ HEX_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
 
 
 def line_blocks(conn, coords, ratio):
-    """The line of every local vertex (a label: the smallest local vertex index on it), or
-    None when no cell has an edge shorter than its longest / ratio or a line would hold
-    more than MAX_LINE_NODES nodes. conn (nc, 8) local vertex indices, coords (nv, 3)."""
-    label, short, longest = _lines(conn, coords, ratio)
-    return label if short and longest <= MAX_LINE_NODES else None
+    """The line of every local vertex (a label), or None when no cell has an edge shorter
+    than its longest / ratio. conn (nc, 8) local vertex indices, coords (nv, 3)."""
+    label, short, _ = _lines(conn, coords, ratio)
+    return label if short else None
 
 
 def _lines(conn, coords, ratio):
     """(label, whether any edge is short, the most nodes on a line) of line_blocks; the
-    label of a vertex without short edges is its own index."""
+    label of a vertex on no line is its own index.
+
+    Each vertex takes the direction of its shortest edge; an edge joins its two ends when
+    it is short (shorter than its cell's longest / ratio) and along both ends' directions.
+    A line is then a straight chain of nodes (never a plane: on a mesh graded toward an
+    edge, cells thin in two directions, a node joins one direction only), and one longer
+    than MAX_LINE_NODES is cut into nearly equal pieces along its direction."""
     nv = coords.shape[0]
     label = np.arange(nv)
     if conn.shape[0] == 0 or ratio <= 1.0:
         return label, False, 1
     a, b, length = _edges(conn, coords)
-    short = length * ratio < length.max(axis=1, keepdims=True)
+    short = (length * ratio < length.max(axis=1, keepdims=True)).ravel()
     if not short.any():
         return label, False, 1
-    a, b = a[short], b[short]
+    a, b, length = a.ravel(), b.ravel(), length.ravel()
+    unit = (coords[b] - coords[a]) / length[:, None]
+    # each vertex's direction: its shortest edge's (ties: the edge nearest the first axis,
+    # so that the nodes of a cell thin in two directions alike agree)
+    ends, lens = np.concatenate([a, b]), np.concatenate([length, length])
+    axis = np.argmax(np.abs(np.concatenate([unit, unit])), axis=1)
+    scale = lens.max()
+    order = np.lexsort((-axis, -np.round(lens / scale, 9), ends))  # shortest last a vertex
+    last = order[np.append(ends[order][1:] != ends[order][:-1], True)]
+    direction = np.zeros((nv, 3))
+    direction[ends[last]] = np.concatenate([unit, unit])[last]
+    along = short & (np.abs((unit * direction[a]).sum(axis=1)) > ALONG) \
+        & (np.abs((unit * direction[b]).sum(axis=1)) > ALONG)
+    if not along.any():
+        return label, False, 1
+    a, b = a[along], b[along]
     while True:                        # at most (line length) sweeps
         m = np.minimum(label[a], label[b])
         new = label.copy()
@@ -78,7 +107,21 @@ def _lines(conn, coords, ratio):
         if np.array_equal(new, label):
             break
         label = new
-    return label, True, int(np.bincount(label, minlength=nv).max())
+    size = np.bincount(label, minlength=nv)
+    if size.max() > MAX_LINE_NODES:    # long lines: pieces in order along the line
+        at = (coords * direction[label]).sum(axis=1)
+        order = np.lexsort((at, label))
+        start = np.concatenate([[0], np.cumsum(size)])[label[order]]
+        pos = np.empty(nv, dtype=np.int64)
+        pos[order] = np.arange(nv) - start
+        pieces = -(-size[label] // MAX_LINE_NODES)
+        piece = pos * pieces // size[label]
+        key = label * (int(pieces.max()) + 1) + piece
+        first = np.full(key.max() + 1, nv, dtype=np.int64)
+        np.minimum.at(first, key, np.arange(nv))
+        label = first[key]
+        size = np.bincount(label, minlength=nv)
+    return label, True, int(size.max())
 
 
 class LineSmoother:
@@ -245,17 +288,16 @@ def level_lines(hierarchy, level, ratio):
     """{j: the line label of each owned vertex of level j, in the order of its rows} for
     the multigrid levels j = 1 .. level of `hierarchy` with lines (none for ratio 0). The
     choice is the same on every rank: a level has lines where any rank's cells have a short
-    edge and no line anywhere holds more than MAX_LINE_NODES nodes (a rank without short
-    edges smooths its nodes one by one, as point-block Jacobi)."""
+    edge (a rank without short edges smooths its nodes one by one, as point-block
+    Jacobi)."""
     out = {}
     if not ratio:
         return out
     for j in range(1, level + 1):
         lv = hierarchy.levels[j]
         comm = lv.dm.getComm().tompi4py()
-        label, short, longest = _lines(lv.conn, lv.coords, ratio)
-        if not comm.allreduce(short, op=MPI.LOR) or \
-                comm.allreduce(longest, op=MPI.MAX) > MAX_LINE_NODES:
+        label, short, _ = _lines(lv.conn, lv.coords, ratio)
+        if not comm.allreduce(short, op=MPI.LOR):
             continue
         lg, owned, (lo, hi) = owned_blocks(lv.dm)
         own = np.flatnonzero(owned)

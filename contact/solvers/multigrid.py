@@ -29,7 +29,8 @@ Smoothing: Chebyshev with point-block Jacobi (the nodes' 3 x 3 blocks; point Jac
 GPU Vec types: level_pc_type), or on a level whose cells are thin (an edge shorter than
 the cell's longest / -multigrid_line_ratio, default 6) with the inverse of whole lines of
 nodes across the thin direction (line_smoother.py: on a plate of aspect-20 cells the
-Krylov iterations stop growing with the aspect, runs/results/bench-thin.md); the coarsest
+Krylov iterations stop growing with the aspect, runs/results/bench-thin.md; on graded
+meshes they fall 2-3x); the coarsest
 level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
 (COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
 

@@ -31,7 +31,8 @@ def _box(n, size):
 def test_lines_are_the_columns_across_the_thin_direction(thin):
     """Cells 0.1 x 0.1 x 0.01 (the thin direction turned to each axis): every line is the
     set of nodes sharing the other two coordinates; cubes and a ratio above the aspect
-    give none, and lines longer than MAX_LINE_NODES are refused."""
+    give none, and a line longer than MAX_LINE_NODES is cut into nearly equal pieces of
+    consecutive nodes."""
     n, size = [4, 3, 5], [0.1, 0.1, 0.1]
     size[thin] = 0.01
     conn, X = _box(n, size)
@@ -46,8 +47,43 @@ def test_lines_are_the_columns_across_the_thin_direction(thin):
     assert line_smoother.line_blocks(conn, X, ratio=20.0) is None
     assert line_smoother.line_blocks(*_box([2, 2, 2], [0.1] * 3), ratio=1.5) is None
     long = [2, 2, 2]
-    long[thin] = line_smoother.MAX_LINE_NODES
-    assert line_smoother.line_blocks(*_box(long, size), ratio=4.0) is None
+    long[thin] = 2 * line_smoother.MAX_LINE_NODES + 1         # lines of 2 MAX + 2 nodes
+    conn, X = _box(long, size)
+    label = line_smoother.line_blocks(conn, X, ratio=4.0)
+    key = np.unique(np.round(X[:, others] / 0.1).astype(int), axis=0, return_inverse=True)[1]
+    assert np.unique(label).size == 3 * 9
+    for line in np.unique(key):
+        at = np.flatnonzero(key.ravel() == line)
+        pieces = label[at[np.argsort(X[at, thin])]]           # the labels in order along it
+        assert np.count_nonzero(np.diff(pieces)) == 2         # three runs of consecutive nodes
+        n = 2 * line_smoother.MAX_LINE_NODES + 2
+        assert sorted(np.unique(pieces, return_counts=True)[1]) == [n // 3, n // 3, n - 2 * (n // 3)]
+
+
+@skip_in_parallel
+def test_lines_of_a_graded_box_are_straight():
+    """A box graded toward an edge (cells thin across x near x = 0, across z near z = 0,
+    across both in the corner, all long in y): every line is straight (its nodes share
+    two coordinates: never a plane, as joining every short edge would make), lines run
+    across the thin direction (x lines at x = 0 away from z = 0, z lines at z = 0 away
+    from x = 0), and at least half the nodes lie on one."""
+    t = np.linspace(0.0, 1.0, 9)
+    graded = 0.02 * (51.0 ** t - 1.0)                       # cells 0.013 to 0.40
+    axes = [graded, np.linspace(0.0, 1.0, 5), graded]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    conn, _ = _box([8, 4, 8], [1.0] * 3)
+    label = line_smoother.line_blocks(conn, X, ratio=4.0)
+    assert label is not None
+    _, line, size = np.unique(label, return_inverse=True, return_counts=True)
+    assert size[line].astype(bool).sum() == X.shape[0] and (size > 1).any()
+    for k in np.flatnonzero(size > 1):
+        pts = X[line == k]
+        assert np.count_nonzero(np.ptp(pts, axis=0) > 1e-12) == 1     # straight
+    along = lambda p: int(np.argmax(np.ptp(X[line == line[p]], axis=0)))  # noqa: E731
+    corner_x = np.flatnonzero((X[:, 0] == 0.0) & (X[:, 2] == graded[-1]))[0]
+    corner_z = np.flatnonzero((X[:, 2] == 0.0) & (X[:, 0] == graded[-1]))[0]
+    assert along(corner_x) == 0 and along(corner_z) == 2
+    assert np.count_nonzero(size[line] > 1) >= X.shape[0] // 2
 
 
 @skip_in_parallel
