@@ -5,6 +5,10 @@ b(v)    = int_Omega f . v dx + int_Gamma_n p . v ds.
 Element matrices (assembly: contact/fem/assembly.py) use 2x2x2 Gauss points and are
 computed for all cells at once (NumPy
 einsum over chunks of cells); face integrals use 2x2 Gauss points on the bilinear face.
+Cells of one shape share one matrix (a uniform box computes one). A graded box has a shape
+per cell, but each cell is a tensor-product brick: its q1 and q2 matrices are formed from
+1D integrals with the same Gauss rule (_brick_stiffness; q2 4x, q1 6x faster: the graded
+beam's set-up at q2 Nd 12, 1 rank, 9.0 -> 4.0 s).
 
 Elements (-element, ELEMENTS):
   q1    the paper's trilinear hexahedron, full integration. Locks volumetrically as
@@ -186,7 +190,99 @@ def element_stiffness_shapes(X, lam, mu, element="q1"):
                                               return_inverse=True)
             if first.size < X.shape[0] // 2:
                 return _element_stiffness(rel[first], lam, mu, element), inverse.ravel()
+    if element in _BRICK_RULES and X.shape[0] > 1:     # a graded box: one shape per cell
+        ok, axis = _brick_axes(X)
+        if ok.all():
+            return _brick_stiffness(X, lam, mu, element, axis), None
     return _element_stiffness(X, lam, mu, element), None
+
+
+def _rule_1d(n):
+    """The 1D Gauss rule of the n-node Lagrange element (2: q1, 3: q2) and its shape
+    functions there: points t, weights w, L (g, n), dL/dt (g, n)."""
+    if n == 2:
+        t, w = np.array([-_G, _G]), np.ones(2)
+        return t, w, np.stack([0.5 * (1.0 - t), 0.5 * (1.0 + t)], axis=1), \
+            np.tile([-0.5, 0.5], (2, 1))
+    t, w = np.array([-_G3, 0.0, _G3]), np.array([5.0, 8.0, 5.0]) / 9.0
+    return (t, w) + _lagrange2(t)
+
+
+#: q1 and q2 on axis-aligned bricks whose every coordinate follows one reference axis
+#: (graded boxes): the 1D rule (the element's 3D rule is its tensor product) and each
+#: node's 1D indices
+_BRICK_RULES = {"q1": (_rule_1d(2), ((HEX_REF + 1) // 2).astype(int)),
+                "q2": (_rule_1d(3), (Q2_REF + 1).astype(int))}
+
+
+def _brick_lines(idx):
+    """line[d][m]: the node at 1D index m on reference axis d and 0 on the others."""
+    return [[int(np.flatnonzero((idx[:, d] == m) & (np.delete(idx, d, axis=1) == 0).all(
+        axis=1))[0]) for m in range(idx.max() + 1)] for d in range(3)]
+
+
+def _brick_axes(X):
+    """(ok, axis): whether each cell (c, a, 3) is a tensor-product brick whose physical
+    coordinate axis[c, d] is a function of reference coordinate d alone (J a permuted
+    diagonal), to 1e-12 of the cell's extent."""
+    idx = _BRICK_RULES["q1" if X.shape[1] == 8 else "q2"][1]
+    line = _brick_lines(idx)
+    c = np.arange(X.shape[0])[:, None]
+    axis = np.stack([np.argmax(np.abs(X[:, line[d][-1]] - X[:, line[d][0]]), axis=1)
+                     for d in range(3)], axis=1)                                # (c, 3)
+    ok = (np.sort(axis, axis=1) == np.arange(3)).all(axis=1)
+    err = np.zeros(X.shape[:2])
+    for d in range(3):      # node a's coordinate along axis[c, d]: that of line[d][a's index]
+        k = axis[:, d:d + 1]
+        err = np.maximum(err, np.abs(X[c, np.arange(X.shape[1]), k] -
+                                     X[c, np.asarray(line[d])[idx[:, d]], k]))
+    return ok & (err <= 1e-12 * np.ptp(X, axis=1).max(axis=1)[:, None]).all(axis=1), axis
+
+
+def _brick_stiffness(X, lam, mu, element, axis):
+    """element_stiffness of q1 or q2 on separable bricks (_brick_axes): the 3D Gauss rule
+    is the product of 1D rules and dN_a/dx_axis[d] = L'(t_d) / J_d(t_d) ..., so each integral
+    of dN_a/dx_k dN_b/dx_l is a product of three 1D integrals (mass M, stiffness S, mixed
+    C) per cell: the same quadrature as _element_stiffness, 10-20x fewer operations. Exactly
+    symmetric (the products are formed in the same order for (a, b) and (b, a))."""
+    (t, w, L, dL), idx = _BRICK_RULES[element]
+    c = np.arange(X.shape[0])
+    line = _brick_lines(idx)
+    x1 = np.stack([X[c[:, None], line[d], axis[:, d:d + 1]] for d in range(3)], axis=1)
+    J = np.einsum("gm,cdm->cdg", dL, x1)                                     # (c, 3, g)
+    # det J at a point is the permutation's sign times the 1D J's product: positive at
+    # every point iff each J_d keeps one sign (else the general path names the cell)
+    sign = np.sign(J[:, :, :1])
+    if np.any(np.sign(J) != sign) or np.any(np.linalg.det(np.eye(3)[axis]) *
+                                            sign[:, :, 0].prod(axis=1) <= 0.0):
+        return _element_stiffness(X, lam, mu, element)
+    LL = L[:, :, None] * L[:, None, :]                                       # (g, n, n)
+    DD = dL[:, :, None] * dL[:, None, :]
+    DL = dL[:, :, None] * L[:, None, :]                                      # L'_m L_n
+    one_d = [np.einsum("cdg,gmn->cdmn", f, m) for f, m in (
+        (w * np.abs(J), LL), (w / np.abs(J), DD), (w * np.sign(J), DL))]   # M, S, C
+    M, S, C, Ct = ([f[:, d][:, idx[:, d][:, None], idx[:, d][None, :]] for d in range(3)]
+                   for f in one_d + [one_d[2].transpose(0, 1, 3, 2)])        # (c, A, A) each
+    G = [[None] * 3 for _ in range(3)]   # G[i][j]: the integrals of dN_a/dx_i dN_b/dx_j
+    for i in range(3):                   # (i, j: reference directions)
+        for j in range(3):
+            f = list(M)
+            f[i], f[j] = (S[i], S[i]) if i == j else (C[i], Ct[j])
+            G[i][j] = f[0] * f[1] * f[2]
+    trace = G[0][0] + G[1][1] + G[2][2]
+    A = X.shape[1]
+    out = np.empty((X.shape[0], A, 3, A, 3))
+    for perm in np.unique(axis, axis=0):        # physical component k: reference d[k]
+        at = (axis == perm).all(axis=1)
+        d = np.argsort(perm)
+        for k in range(3):
+            for m in range(3):
+                v = lam * G[d[k]][d[m]] + mu * G[d[m]][d[k]]
+                if k == m:
+                    v = v + mu * trace
+                out[:, :, k, :, m] = v if at.all() else np.where(at[:, None, None], v,
+                                                                 out[:, :, k, :, m])
+    return out.reshape(-1, 3 * A, 3 * A)
 
 
 def _element_stiffness(X, lam, mu, element):

@@ -192,3 +192,52 @@ def test_bad_element_is_refused():
     from contact import scene as scenes
     with pytest.raises(SceneError, match="element must be auto, q1, bbar, q2, q2p1, got 'q3'"):
         scenes.validate(sc)
+
+
+def _graded_grid(element, perm):
+    """The independent reference's grid of 3 x 2 x 2 cells with each axis mapped by its own
+    graded map (q2: the mid-side nodes too, so they sit off the cells' middles, as on a
+    graded box's node mesh), its coordinates' columns permuted by perm; the cells in the
+    reference's node order and in the package's."""
+    grid = ind.grid if element == "q1" else ind.grid_q2
+    xyz, cells = grid([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [3, 2, 2])
+    maps = (lambda t: t ** 2 + 0.2 * t, lambda t: 0.5 * (np.exp(t) - 1.0),  # noqa: E731
+            lambda t: np.sin(1.2 * t))
+    xyz = np.stack([maps[d](xyz[:, d]) for d in range(3)], axis=1)[:, perm]
+    ref = HEX_REF if element == "q1" else fem.element.Q2_REF
+    base = 2 if element == "q1" else 3
+    order = [int(((r + 1) / (2 / (base - 1))) @ [1, base, base * base]) for r in ref]
+    return xyz, cells, cells[:, order]
+
+
+@pytest.mark.parametrize("perm", [(0, 1, 2), (2, 0, 1)])
+@pytest.mark.parametrize("element", ["q1", "q2"])
+def test_graded_bricks_against_the_reference(element, perm):
+    """A graded box has one cell shape per cell: its q1 and q2 element matrices come from
+    products of 1D integrals (element._brick_stiffness). Assembled, they equal the
+    independent reference's (Voigt B^T D B at the 3D Gauss points) to 1e-12, cell by cell
+    they equal the package's own 3D quadrature to 1e-13 and are exactly symmetric; a
+    cell moved off the tensor product falls back to the 3D quadrature."""
+    xyz, theirs, cells = _graded_grid(element, perm)
+    young, nu = 2.0e3, 0.3
+    lam, mu = fem.lame(young, nu)
+    X = xyz[cells]
+    assert fem.element._brick_axes(X)[0].all()
+    Ke = fem.element_stiffness(X, lam, mu, element)
+    assert np.array_equal(Ke, Ke.transpose(0, 2, 1))
+    general = fem.element._element_stiffness(X, lam, mu, element)
+    assert np.abs(Ke - general).max() < 1e-13 * np.abs(general).max()
+    assert not np.array_equal(Ke, general)            # (the brick path was taken)
+    K = ind.stiffness(xyz, theirs, young, nu, element).toarray()
+    ours = np.zeros_like(K)
+    n = 3 * cells.shape[1]
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(cells.shape[0], n)
+    for c in range(cells.shape[0]):
+        ours[np.ix_(dofs[c], dofs[c])] += Ke[c]
+    assert _rel(ours, K) < 1e-12
+    X = X.copy()
+    X[0, 1] += 0.01 * np.ptp(X[0], axis=0)            # no longer separable
+    ok = fem.element._brick_axes(X)[0]
+    assert not ok[0] and ok[1:].all()
+    assert np.array_equal(fem.element_stiffness(X, lam, mu, element),
+                          fem.element._element_stiffness(X, lam, mu, element))
