@@ -243,8 +243,8 @@ def _brick_stiffness(X, lam, mu, element, axis):
     """element_stiffness of q1 or q2 on separable bricks (_brick_axes): the 3D Gauss rule
     is the product of 1D rules and dN_a/dx_axis[d] = L'(t_d) / J_d(t_d) ..., so each integral
     of dN_a/dx_k dN_b/dx_l is a product of three 1D integrals (mass M, stiffness S, mixed
-    C) per cell: the same quadrature as _element_stiffness, 10-20x fewer operations. Exactly
-    symmetric (the products are formed in the same order for (a, b) and (b, a))."""
+    C) per cell: the same quadrature as _element_stiffness, 4x (q2) to 6x (q1) faster.
+    Exactly symmetric (the products are formed in the same order for (a, b) and (b, a))."""
     (t, w, L, dL), idx = _BRICK_RULES[element]
     c = np.arange(X.shape[0])
     line = _brick_lines(idx)

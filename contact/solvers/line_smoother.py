@@ -24,8 +24,10 @@ to place and cells near the edge are thin in two directions: joining every short
 there made planes (the level then fell back to point-block Jacobi), chains keep lines. The
 paper's beam graded for max |u| (q2, Nd 12, 1 rank): 75 Krylov iterations instead of 233,
 the solve 30 s instead of 62; the Hertz box graded for N (Nd 32): 76 instead of 173
-(runs/results/line-smoother.md). The blocks are found once per level from its mesh; the inverse is formed at each set-up of the level's
-operator (the Newton Jacobian changes its contact rows) from the rank's diagonal block
+(runs/results/line-smoother.md).
+
+The blocks are found once per level from its mesh; the inverse is formed at each set-up of
+the level's operator (the Newton Jacobian changes its contact rows) from the rank's diagonal block
 (rows and columns it owns: a line cut by the partition is two lines), the blocks of equal
 size inverted together (numpy.linalg.inv; again only the blocks whose values changed), and
 applied as one AIJ MatMult (the smoothing stays in PETSc Mat/Vec operations; not used with

@@ -57,7 +57,8 @@ def test_lines_are_the_columns_across_the_thin_direction(thin):
         pieces = label[at[np.argsort(X[at, thin])]]           # the labels in order along it
         assert np.count_nonzero(np.diff(pieces)) == 2         # three runs of consecutive nodes
         n = 2 * line_smoother.MAX_LINE_NODES + 2
-        assert sorted(np.unique(pieces, return_counts=True)[1]) == [n // 3, n // 3, n - 2 * (n // 3)]
+        assert sorted(np.unique(pieces, return_counts=True)[1]) == [n // 3, n // 3,
+                                                                    n - 2 * (n // 3)]
 
 
 @skip_in_parallel
