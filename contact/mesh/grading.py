@@ -223,6 +223,10 @@ def place_lattice(level, planes, grading):
     level.dm.setCoordinatesLocal(v)
 
 
+#: local_coordinates: a Newton step below this that no longer halves is round-off
+STALL = 1e-10
+
+
 def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
     """On mapped levels (a graded box, bodies with a lower_surface): the place in [-1, 1]^3
     of fine vertices x (n, 3) in their parent cells Xp (n, 8, 3, HEX_REF order), the
@@ -233,11 +237,14 @@ def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
     component is kept, exactly (least squares in the others: on a curved face a fine
     vertex is off its parent's bilinear face by the sag), so a vertex on a face is given
     by that face's 4 corners alone and neighbouring parents agree on it. Stops when the
-    steps are below tol (relative to 2, the cell's width in xi); on an axis-aligned box
+    steps are below tol (relative to 2, the cell's width in xi), or stop halving below
+    STALL (round-off: a cell of 0.0035 at x = 3 has steps of ~1e-13 for ever, where the
+    30 iterations took 10 of the graded beam's 24 s at Nd 32); on an axis-aligned box
     cell (a graded box) the map is affine per axis: the first step is exact."""
     free = xi == 0.0
     out = np.array(xi, dtype=float, copy=True)
     step = np.zeros_like(out)
+    last = np.inf
     for _ in range(iterations):
         f = 1.0 + out[:, None, :] * HEX_REF[None, :, :]                  # (n, 8, 3)
         N = np.prod(f, axis=2) / 8.0                                      # (n, 8)
@@ -248,8 +255,10 @@ def local_coordinates(xi, Xp, x, tol=1e-14, iterations=30):
         A = np.einsum("nki,nkj->nij", J, J) + np.eye(3) * (~free)[:, :, None]
         step = np.linalg.solve(A, np.einsum("nki,nk->ni", J, r)[..., None])[..., 0]
         out += step
-        if np.abs(step).max(initial=0.0) <= tol:
+        size = np.abs(step).max(initial=0.0)
+        if size <= tol or size < STALL and size > 0.5 * last:
             break
+        last = size
     if np.abs(step).max(initial=0.0) > 1e-8:
         raise MeshError("the inverse trilinear map of a mapped level did not converge")
     if out.size and np.abs(out[free]).max(initial=0.0) >= 1.0:
