@@ -194,9 +194,9 @@ REGISTRY = [
            "preconditioner after a linear solve of more than N iterations (and after a "
            "failed one)", "N"),
     Option("multigrid_line_ratio", 6.0, float, "thin cells: the multigrid's smoothers "
-           "invert whole lines of nodes joined by cell edges shorter than the cell's longest "
-           "/ R (contact/solvers/line_smoother.py; not with GPU Vec types); 0: point-block "
-           "Jacobi everywhere", "R"),
+           "invert straight lines of nodes joined by cell edges shorter than the cell's "
+           "longest / R (contact/solvers/line_smoother.py; not with GPU Vec types); 0: "
+           "point-block Jacobi everywhere", "R"),
     Option("newton_pressure_split", "auto", str, "the linear solves of a nearly "
            "incompressible B-bar body (nu > 0.4; the Newton steps', and without contact "
            "the -elastic_ one): auto, GMRES on the mixed u-p system with a Schur "
