@@ -35,6 +35,12 @@ Parts (--part, default all):
           (ratio 4: the lines across the thickness, contact/solvers/line_smoother.py):
           Newton steps, Krylov iterations in all and the longest solve of the finest
           level, time; recorded in runs/results/bench-thin.md.
+  graded  meshes graded by the run (-mesh_grading auto), 1 rank: the beam at q2 N = 12
+          aimed at max |u| and the Hertz box (runs/scenes/hertz_box.yaml) at Nd = 32 aimed
+          at N (--graded-nd), with the multigrid's point-block Jacobi smoothing
+          (-multigrid_line_ratio 0) against its lines (the default: straight chains along
+          each node's shortest edge): Krylov iterations, the longest solve of the finest
+          level, set-up and solve time; recorded in runs/results/bench-graded.md.
   setup   the set-up of the default solver at Nd = 80 (--setup-nd) on one rank: the box
           refined in NumPy with a stencil stiffness (the default) against DMRefine and the
           cell-by-cell assembly (-mesh_refine_dmplex 1 -assembly_stencil 0), BAIJ and AIJ
@@ -365,6 +371,34 @@ def part_thin(args, lines):
     lines.append("")
 
 
+def part_graded(args, lines):
+    """Line smoothing on meshes graded by the run (the module docstring)."""
+    lines += ["## Meshes graded by the run: point-block Jacobi against lines, 1 rank", "",
+              "Each case grades its mesh from a pilot (its time is in the total), then "
+              "solves; ratio 0: point-block Jacobi on every level; 6: the default, lines "
+              "(straight chains of nodes along each node's shortest edge where it is "
+              "shorter than its cell's longest / 6).", "",
+              "| scene | element | Nd | dofs | ratio | Newton steps | Krylov its | longest "
+              "finest solve | set-up, s | solve, s | total, s |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    beam, box = args.graded_nd
+    for name, scene, el, nd, aim in (("beam", [], "q2", beam, "max_u"),
+                                     ("hertz_box", ["-scene", HERTZ_BOX], "q1", box, "force")):
+        for ratio in ("0", "6"):
+            r = run(args, f"graded-{name}-{el}-nd{nd}-r{ratio}", nd, scene + [
+                "-element", el, "-mesh_grading", "auto", "-error_quantity", aim,
+                "-newton_ksp_converged_reason", "-multigrid_line_ratio", ratio])
+            s, its, t = r.summary, r.summary["iterations"], r.summary["time_s"]
+            lines.append(f"| {name} | {el} | {nd} | {s['dofs']} | {ratio} | "
+                         f"{its['inner_total']} | {its['ksp_total']} | "
+                         f"{max(_finest_solves(r.stdout), default=0)} | {t['setup']:.2f} | "
+                         f"{t['solve']:.2f} | {t['total']:.2f} |")
+    lines.append("")
+
+
+HERTZ_BOX = os.path.join(ROOT, "runs", "scenes", "hertz_box.yaml")
+
+
 #: part memory: (element, mode, Nd small, Nd large), the paper's beam; q2 at half the Nd has
 #: the same nodes
 MEMORY_CASES = [("q1", "newton", 20, 40), ("bbar", "newton", 20, 40), ("q2", "newton", 10, 20),
@@ -453,7 +487,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="all", choices=["all", "table1", "equal", "floor",
                                                        "ranks", "scaling", "quadratic",
-                                                       "memory", "setup", "thin"])
+                                                       "memory", "setup", "thin",
+                                                       "graded"])
     ap.add_argument("--q2-nd", type=int, nargs="+", default=[8, 12],
                     help="sizes (N) of the quadratic part")
     ap.add_argument("--nd", type=int, nargs="+", default=[10, 20, 40])
@@ -471,6 +506,8 @@ def main(argv=None):
                     help="sizes of the thin part, q1")
     ap.add_argument("--thin-q2-nd", type=int, nargs="+", default=[4, 8],
                     help="sizes of the thin part, q2")
+    ap.add_argument("--graded-nd", type=int, nargs=2, default=[12, 32],
+                    help="sizes of the graded part: the beam (q2 N), the Hertz box (Nd)")
     ap.add_argument("--force", action="store_true", help="rerun cached cases")
     ap.add_argument("--smoke", action="store_true",
                     help="every part at Nd = 2 (tests); needs --out-dir, records there")
@@ -487,6 +524,7 @@ def main(argv=None):
         args.q2_nd = [2]
         args.setup_nd, args.setup_warm = 4, 0.0
         args.thin_nd, args.thin_q2_nd = [2], [1]
+        args.graded_nd = [2, 8]
         args.memory_cases = [(el, mode, 1, 2) for el, mode, _, _ in MEMORY_CASES[:2]]
     args.memory_cases = getattr(args, "memory_cases", MEMORY_CASES)
     args.out_dir = args.out_dir or os.path.join(ROOT, "runs", "out", "bench")
@@ -498,7 +536,8 @@ def main(argv=None):
              + ["- CPU only; PETSc from Debian; 1 rank unless a table says otherwise.", ""])
     parts = {"table1": part_table1, "equal": part_equal, "floor": part_floor,
              "ranks": part_ranks, "scaling": part_scaling, "quadratic": part_quadratic,
-             "memory": part_memory, "setup": part_setup, "thin": part_thin}
+             "memory": part_memory, "setup": part_setup, "thin": part_thin,
+             "graded": part_graded}
     for name, fn in parts.items():
         if args.part in ("all", name):
             fn(args, lines)

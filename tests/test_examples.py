@@ -131,6 +131,12 @@ def test_bench(tmp_path):
     assert all(int(r[2]) == n_p(4) for r in q2.values())
     assert float(q2["no contact, CG + GAMG (the LSE)"][7]) == 1.0
     assert int(q2["default (newton, multigrid)"][5].split("/")[0]) >= 1
+    # the graded part: each scene with point-block Jacobi and with lines, graded, converged
+    graded = table_rows(md.partition("## Meshes graded by the run")[2], "beam") + \
+        table_rows(md.partition("## Meshes graded by the run")[2], "hertz_box")
+    assert [(r[0], r[4]) for r in graded] == [("beam", "0"), ("beam", "6"),
+                                              ("hertz_box", "0"), ("hertz_box", "6")], graded
+    assert all(int(r[6]) >= 1 for r in graded)
     # 1 rank vs 2 ranks (default mode): two rows, and the 2-rank answer is the 1-rank one's
     assert [r[1] for r in table_rows(md, 2) if len(r) == 10 and r[1].isdigit()] == ["1", "2"]
     one = harness.cached(tmp_path / "newton-nd2", ["-nd", 2, "-solver_mode", "newton"])
