@@ -82,6 +82,7 @@ def run(args, case, nd, opts, np_=1, force=None, log_view=False, timeout=3600):
 
 
 LSE_SCENE = os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml")
+HERTZ_BOX = os.path.join(ROOT, "runs", "scenes", "hertz_box.yaml")
 
 
 def lse(args, nd, np_=1):
@@ -394,9 +395,6 @@ def part_graded(args, lines):
                          f"{max(_finest_solves(r.stdout), default=0)} | {t['setup']:.2f} | "
                          f"{t['solve']:.2f} | {t['total']:.2f} |")
     lines.append("")
-
-
-HERTZ_BOX = os.path.join(ROOT, "runs", "scenes", "hertz_box.yaml")
 
 
 #: part memory: (element, mode, Nd small, Nd large), the paper's beam; q2 at half the Nd has

@@ -190,7 +190,7 @@ def element_stiffness_shapes(X, lam, mu, element="q1"):
                                               return_inverse=True)
             if first.size < X.shape[0] // 2:
                 return _element_stiffness(rel[first], lam, mu, element), inverse.ravel()
-    if element in _BRICK_RULES and X.shape[0] > 1:     # a graded box: one shape per cell
+    if element in ("q1", "q2") and X.shape[0] > 1:     # a graded box: one shape per cell
         ok, axis = _brick_axes(X)
         if ok.all():
             return _brick_stiffness(X, lam, mu, element, axis), None
@@ -199,34 +199,33 @@ def element_stiffness_shapes(X, lam, mu, element="q1"):
 
 def _rule_1d(n):
     """The 1D Gauss rule of the n-node Lagrange element (2: q1, 3: q2) and its shape
-    functions there: points t, weights w, L (g, n), dL/dt (g, n)."""
+    functions there: weights w, L (g, n), dL/dt (g, n)."""
     if n == 2:
-        t, w = np.array([-_G, _G]), np.ones(2)
-        return t, w, np.stack([0.5 * (1.0 - t), 0.5 * (1.0 + t)], axis=1), \
+        t = np.array([-_G, _G])
+        return np.ones(2), np.stack([0.5 * (1.0 - t), 0.5 * (1.0 + t)], axis=1), \
             np.tile([-0.5, 0.5], (2, 1))
-    t, w = np.array([-_G3, 0.0, _G3]), np.array([5.0, 8.0, 5.0]) / 9.0
-    return (t, w) + _lagrange2(t)
-
-
-#: q1 and q2 on axis-aligned bricks whose every coordinate follows one reference axis
-#: (graded boxes): the 1D rule (the element's 3D rule is its tensor product) and each
-#: node's 1D indices
-_BRICK_RULES = {"q1": (_rule_1d(2), ((HEX_REF + 1) // 2).astype(int)),
-                "q2": (_rule_1d(3), (Q2_REF + 1).astype(int))}
+    return (np.array([5.0, 8.0, 5.0]) / 9.0,) + _lagrange2(np.array([-_G3, 0.0, _G3]))
 
 
 def _brick_lines(idx):
     """line[d][m]: the node at 1D index m on reference axis d and 0 on the others."""
-    return [[int(np.flatnonzero((idx[:, d] == m) & (np.delete(idx, d, axis=1) == 0).all(
-        axis=1))[0]) for m in range(idx.max() + 1)] for d in range(3)]
+    return np.array([[int(np.flatnonzero((idx[:, d] == m) & (np.delete(idx, d, axis=1) == 0)
+                                         .all(axis=1))[0]) for m in range(idx.max() + 1)]
+                     for d in range(3)])
+
+
+#: q1 and q2 on axis-aligned bricks whose every coordinate follows one reference axis
+#: (graded boxes), by node count: the 1D rule (the element's 3D rule is its tensor
+#: product), each node's 1D indices and the nodes along each reference axis
+_BRICK_RULES = {n: (_rule_1d(k), idx, _brick_lines(idx)) for n, k, idx in (
+    (8, 2, ((HEX_REF + 1) // 2).astype(int)), (27, 3, (Q2_REF + 1).astype(int)))}
 
 
 def _brick_axes(X):
     """(ok, axis): whether each cell (c, a, 3) is a tensor-product brick whose physical
     coordinate axis[c, d] is a function of reference coordinate d alone (J a permuted
     diagonal), to 1e-12 of the cell's extent."""
-    idx = _BRICK_RULES["q1" if X.shape[1] == 8 else "q2"][1]
-    line = _brick_lines(idx)
+    _, idx, line = _BRICK_RULES[X.shape[1]]
     c = np.arange(X.shape[0])[:, None]
     axis = np.stack([np.argmax(np.abs(X[:, line[d][-1]] - X[:, line[d][0]]), axis=1)
                      for d in range(3)], axis=1)                                # (c, 3)
@@ -235,7 +234,7 @@ def _brick_axes(X):
     for d in range(3):      # node a's coordinate along axis[c, d]: that of line[d][a's index]
         k = axis[:, d:d + 1]
         err = np.maximum(err, np.abs(X[c, np.arange(X.shape[1]), k] -
-                                     X[c, np.asarray(line[d])[idx[:, d]], k]))
+                                     X[c, line[d][idx[:, d]], k]))
     return ok & (err <= 1e-12 * np.ptp(X, axis=1).max(axis=1)[:, None]).all(axis=1), axis
 
 
@@ -245,9 +244,8 @@ def _brick_stiffness(X, lam, mu, element, axis):
     of dN_a/dx_k dN_b/dx_l is a product of three 1D integrals (mass M, stiffness S, mixed
     C) per cell: the same quadrature as _element_stiffness, 4x (q2) to 6x (q1) faster.
     Exactly symmetric (the products are formed in the same order for (a, b) and (b, a))."""
-    (t, w, L, dL), idx = _BRICK_RULES[element]
+    (w, L, dL), idx, line = _BRICK_RULES[X.shape[1]]
     c = np.arange(X.shape[0])
-    line = _brick_lines(idx)
     x1 = np.stack([X[c[:, None], line[d], axis[:, d:d + 1]] for d in range(3)], axis=1)
     J = np.einsum("gm,cdm->cdg", dL, x1)                                     # (c, 3, g)
     # det J at a point is the permutation's sign times the 1D J's product: positive at

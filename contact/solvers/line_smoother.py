@@ -63,13 +63,13 @@ HEX_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
 def line_blocks(conn, coords, ratio):
     """The line of every local vertex (a label), or None when no cell has an edge shorter
     than its longest / ratio. conn (nc, 8) local vertex indices, coords (nv, 3)."""
-    label, short, _ = _lines(conn, coords, ratio)
+    label, short = _lines(conn, coords, ratio)
     return label if short else None
 
 
 def _lines(conn, coords, ratio):
-    """(label, whether any edge is short, the most nodes on a line) of line_blocks; the
-    label of a vertex on no line is its own index.
+    """(label, whether any edge is short) of line_blocks; the label of a vertex on no line
+    is its own index.
 
     Each vertex takes the direction of its shortest edge; an edge joins its two ends when
     it is short (shorter than its cell's longest / ratio) and along both ends' directions.
@@ -79,11 +79,11 @@ def _lines(conn, coords, ratio):
     nv = coords.shape[0]
     label = np.arange(nv)
     if conn.shape[0] == 0 or ratio <= 1.0:
-        return label, False, 1
+        return label, False
     a, b, length = _edges(conn, coords)
     short = (length * ratio < length.max(axis=1, keepdims=True)).ravel()
     if not short.any():
-        return label, False, 1
+        return label, False
     a, b, length = a.ravel(), b.ravel(), length.ravel()
     unit = (coords[b] - coords[a]) / length[:, None]
     # each vertex's direction: its shortest edge's (ties: the edge nearest the first axis,
@@ -98,7 +98,7 @@ def _lines(conn, coords, ratio):
     along = short & (np.abs((unit * direction[a]).sum(axis=1)) > ALONG) \
         & (np.abs((unit * direction[b]).sum(axis=1)) > ALONG)
     if not along.any():
-        return label, False, 1
+        return label, False
     a, b = a[along], b[along]
     while True:                        # at most (line length) sweeps
         m = np.minimum(label[a], label[b])
@@ -122,8 +122,7 @@ def _lines(conn, coords, ratio):
         first = np.full(key.max() + 1, nv, dtype=np.int64)
         np.minimum.at(first, key, np.arange(nv))
         label = first[key]
-        size = np.bincount(label, minlength=nv)
-    return label, True, int(size.max())
+    return label, True
 
 
 class LineSmoother:
@@ -298,7 +297,7 @@ def level_lines(hierarchy, level, ratio):
     for j in range(1, level + 1):
         lv = hierarchy.levels[j]
         comm = lv.dm.getComm().tompi4py()
-        label, short, _ = _lines(lv.conn, lv.coords, ratio)
+        label, short = _lines(lv.conn, lv.coords, ratio)
         if not comm.allreduce(short, op=MPI.LOR):
             continue
         lg, owned, (lo, hi) = owned_blocks(lv.dm)
