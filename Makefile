@@ -139,7 +139,7 @@ TESTS_CURRENT  ?= tests/test_expression.py tests/mesh/test_mesh.py tests/mesh/te
 	tests/io/test_output_files.py tests/solvers/test_friction_held.py \
 	tests/solvers/test_newton_globalisation.py tests/solvers/test_device_paths.py \
 	tests/mesh/test_refine.py tests/fem/test_stencil.py tests/solvers/test_line_smoother.py \
-	tests/fem/test_pairs.py
+	tests/fem/test_pairs.py tests/solvers/test_newton_ksp.py
 TESTS_CURRENT2 ?= tests/test_ranks.py tests/solvers/test_multigrid.py tests/solvers/test_mixed.py \
 	tests/solvers/test_coulomb.py tests/solvers/test_line_smoother.py
 .PHONY: test-current petsc-current

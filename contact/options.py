@@ -1,20 +1,18 @@
 """The options this program reads, declared once, and the check that rejects unknown ones.
 
-`REGISTRY` is the one list: each option's name, default, type and help. From it come
-`-help` (`usage`), the names the checker knows (`known`), the loops' defaults
-(`Loop.set_from_options`: the registry's default, then the scene's `solver:` value, then
-the options database) and the README's option table (`markdown_table`, held equal to the
-README by tests/test_options.py).
+`REGISTRY` is the one list: each option's name, default, type and help. From it come `-help`
+(`usage`), the names the checker knows (`known`), the loops' defaults (`Loop.set_from_options`:
+the registry's default, then the scene's `solver:` value, then the options database) and the
+README's option table (`markdown_table`, held equal to the README by tests/test_options.py).
 
 PETSc silently ignores an option nobody asks for, so ``-apg_rtoll 1e-3`` would run with
 the default tolerance. Before a run, every option in the database is checked:
   * names under our prefixes (apg_, uzawa_, fp_, ssn_ outside its KSP/PC, c2f_, solver_,
     scene_) and the named scene options must be ones we read;
   * any other name close to one of ours (a likely typo: -frction) is rejected too;
-  * the rest are PETSc's own (-log_view, -ssn_ksp_type, -elastic_pc_type, ...) and are
-    left to PETSc.
+  * the rest are PETSc's own (-log_view, -ssn_ksp_type, -elastic_pc_type, ...), left to it.
 Presets (`-solver_mode fast`) are inserted for one solve only (`inserted`), as DOLFINx and
-firedrake do: options the user gave win, and nothing is left behind.
+firedrake do: options the user gave win, nothing is left behind.
 """
 import contextlib
 import ctypes
@@ -190,6 +188,8 @@ REGISTRY = [
            "ETA"),
     Option("newton_pc_reuse", True, bool, "keep the preconditioner from step to step "
            "(the Jacobian changes only in its contact rows)", "BOOL"),
+    Option("newton_krylov_stall_its", 100, int, "a Newton step's Krylov solve fails where, "
+           "at its last N iterations' rate, it needs 2 x the ksp_max_it left; 0: off", "N"),
     Option("newton_pc_rebuild_its", 40, int, "with -newton_pc_reuse: build a new "
            "preconditioner after a linear solve of more than N iterations (and after a "
            "failed one)", "N"),
@@ -494,7 +494,7 @@ def usage():
 def markdown_table():
     """The README's option table."""
     out = ["| option | meaning | default |", "|---|---|---|"]
-    for text, meaning, default in _rows():
-        out.append(f"| `{text.replace('|', chr(92) + '|')}` | {meaning.replace('|', chr(92) + '|')} | "
-                   f"{default.replace('|', chr(92) + '|')} |")
+    for row in _rows():
+        text, meaning, default = (t.replace("|", "\\|") for t in row)
+        out.append(f"| `{text}` | {meaning} | {default} |")
     return "\n".join(out)

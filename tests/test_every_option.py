@@ -85,6 +85,7 @@ CASES = {
     "newton_ew_max": ("0.05", {}),
     "newton_pc_reuse": ("false", {}),
     "newton_pc_rebuild_its": ("5", {}),
+    "newton_krylov_stall_its": ("0", {}),
     "newton_linesearch_min": ("0.1", {}),
     "newton_pressure_split": ("off", {"poisson": "0.45"}),
     "multigrid_line_ratio": ("0", {"nd": "8"}),

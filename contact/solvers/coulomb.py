@@ -151,6 +151,9 @@ class CoulombNewton(LinearCounts, Loop):
             raise ValueError(f"-newton_tension_slip must be >= 0, got {self.tension_slip}")
         if self.watchdog < 0:
             raise ValueError(f"-newton_watchdog must be >= 0, got {self.watchdog}")
+        if self.krylov_stall_its < 0:
+            raise ValueError(f"-newton_krylov_stall_its must be >= 0, got "
+                             f"{self.krylov_stall_its}")
         if self.stall_its < 1:
             raise ValueError(f"-newton_stall_its must be >= 1, got {self.stall_its}")
         if self.continuation_levels < 0:
@@ -170,6 +173,7 @@ class CoulombNewton(LinearCounts, Loop):
             with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
                                    self.prefix + "ksp_gmres_restart": "30"}):
                 multigrid.configure(self.ksp, self.mg)
+        self.linear.watch_stagnation(self.krylov_stall_its)
         self.jac.storage(self.jacobian)
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
         if self.linear.direct:

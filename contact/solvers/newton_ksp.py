@@ -11,7 +11,9 @@ changes only a little. NewtonKSP holds what they share:
     solve fails, the preconditioner is built afresh (`on_setup` first: the multigrid's
     operators, the sets it was built for) and the system solved again; the fresh set-ups
     (`setups`) and Krylov iterations (`iterations`) are counted;
-  - `hint(direct)`: why a solve failed, in PETSc's words, and what to try.
+  - `hint(direct)`: why a solve failed, in PETSc's words, and what to try;
+  - `watch_stagnation(n)`: a solve that, at the rate of its last n iterations, would not
+    reach its tolerance within ksp_max_it stops as failed there (`Stagnation`).
   - `halving(trial, accept, t_min)`: the step-length search, t = 1, 1/2, 1/4, ... until a
     trial step is accepted or t <= t_min.
 When to reuse is each iteration's own policy (the default solver: until a solve takes more
@@ -21,6 +23,7 @@ be accepted is each iteration's own too, the `accept` argument: their merit func
 differ (the default solver: Armijo on the residual norm of the whole problem, under its
 watchdog; SSN: a decrease of the subproblem's Theta beyond its rounding).
 """
+import numpy as np
 from petsc4py import PETSc
 
 from contact.solvers import multigrid
@@ -37,6 +40,54 @@ def halving(trial, accept, t_min, t=1.0):
             return t, value, cuts
         t *= 0.5
         cuts += 1
+
+
+#: Stagnation: how many times its remaining iterations a solve may need, at its recent rate
+STAGNATION_MARGIN = 2.0
+
+
+class Stagnation:
+    """A KSP convergence test: PETSc's default (KSPConvergedDefault with a zero initial
+    guess: converged below max(rtol ||r_0||, atol), diverged at NaN or above
+    divtol ||r_0||), and a stop at iteration k >= n where the solve, at the rate of its
+    last n iterations (||r_k|| / ||r_{k-n}||, linear), would need more than
+    STAGNATION_MARGIN times its remaining max_it - k iterations to reach its tolerance:
+    reported as KSP DIVERGED_MAX_IT (`stalled` says so). Restarted GMRES that makes no
+    progress over whole cycles makes none after them (each restart starts the same cycle
+    from nearly the same residual). Measured on the paper's beam at F = 100
+    (runs/results/friction-large.md): Nd 8 from Nd 4's answer, GMRES stays at 1.5e-2 of
+    its start from iteration 50 to 1000 three times (12 s of a 13 s run, then LU); at
+    Nd 16 a kept preconditioner creeps 4 % per 100 iterations to 1000 (then a fresh one
+    converges in 26)."""
+
+    def __init__(self, window):
+        self.window = int(window)
+        self.history = []
+        self.stalled = False
+
+    def __call__(self, ksp, its, rnorm):
+        Reason = PETSc.KSP.ConvergedReason
+        if its == 0:
+            self.history, self.stalled = [], False
+            self.r0 = rnorm
+        self.history.append(rnorm)
+        if rnorm != rnorm or rnorm == float("inf"):
+            return Reason.DIVERGED_NANORINF
+        if its == 0:
+            return Reason.ITERATING
+        rtol, atol, divtol, max_it = ksp.getTolerances()
+        ttol = max(rtol * self.r0, atol)
+        if rnorm <= ttol:
+            return Reason.CONVERGED_ATOL if rnorm < atol else Reason.CONVERGED_RTOL
+        if rnorm >= divtol * self.r0:
+            return Reason.DIVERGED_DTOL
+        if its >= self.window:
+            rate = np.log(rnorm / self.history[its - self.window]) / self.window
+            if rate >= 0.0 or np.log(ttol / rnorm) / rate > \
+                    STAGNATION_MARGIN * (max_it - its):
+                self.stalled = True
+                return Reason.DIVERGED_MAX_IT
+        return Reason.ITERATING
 
 
 class NewtonKSP:
@@ -61,6 +112,18 @@ class NewtonKSP:
         #: whether a kept preconditioner keeps its fieldsplit's blocks' too (mixed.py,
         #: Split.reuse_blocks): else a block whose Mat changed in place is set up anew
         self.reuse_blocks = False
+        self.stagnation = None     # the Stagnation test, where watched
+
+    def watch_stagnation(self, window):
+        """Stop a solve that stagnates over `window` iterations (Stagnation; 0: PETSc's
+        own test). Not where PETSc's test differs from the one re-implemented (a nonzero
+        initial guess, no residual norm): after the KSP's type is set from the options."""
+        k = self.ksp
+        if window <= 0 or k.getInitialGuessNonzero() or \
+                k.getNormType() == PETSc.KSP.NormType.NONE:
+            return
+        self.stagnation = Stagnation(window)
+        k.setConvergenceTest(self.stagnation)
 
     @property
     def direct(self):
@@ -106,6 +169,11 @@ class NewtonKSP:
         p = "-" + self.prefix
         if "NANORINF" in name:
             return f"the Newton system has NaN or Inf (KSP {name}): a NaN entered the iterate"
+        if self.stagnation is not None and self.stagnation.stalled:
+            return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations: "
+                    f"stagnated (at the rate of its last {self.stagnation.window} it would "
+                    f"not reach its tolerance by {p}ksp_max_it: {p}krylov_stall_its); "
+                    f"try {p}ksp_type preonly {p}pc_type {direct_pc}")
         return (f"KSP {name} after {self.ksp.getIterationNumber()} iterations; try "
                 f"{p}ksp_type preonly {p}pc_type {direct_pc}, or raise {p}ksp_max_it")
 
