@@ -46,7 +46,8 @@ from petsc4py import PETSc
 from contact import options
 from contact.solvers import multigrid
 from contact.solvers.coulomb_globalisation import (DIVERGED_LINEAR_SOLVE,
-                                                   DIVERGED_STAGNATION, iterate)
+                                                   DIVERGED_STAGNATION, iterate,
+                                                   solve_directly)
 from contact.solvers.coulomb_jacobian import CoulombJacobian
 from contact.solvers.loop import CONVERGED_ROUNDOFF, Loop
 from contact.solvers.newton_ksp import LinearCounts, NewtonKSP
@@ -137,34 +138,24 @@ class CoulombNewton(LinearCounts, Loop):
         self.linear = NewtonKSP(self.comm, self.prefix, "gmres", (1e-8, 0.0, 1000),
                                 right=True)
         self.ksp = self.linear.ksp
-        self.direct_fallbacks = 0      # loops that went on with direct solves (fall_back_direct)
+        #: fall_back_direct's steps (in all, in a row); whether the next (last) one is; its KSP
+        self.direct_fallbacks = self.direct_streak = 0
+        self.direct_step, self._direct, self._direct_last = False, None, False
 
     def check_options(self):
-        if not 0.0 < self.ew_max < 1.0:
-            raise ValueError(f"-newton_ew_max must be in (0, 1), got {self.ew_max}")
-        if not 0.0 <= self.continuation_factor < 1.0:
-            raise ValueError(f"-newton_continuation_factor must be in [0, 1), got "
-                             f"{self.continuation_factor}")
-        if not self.friction_start > 0.0:
-            raise ValueError(f"-newton_friction_start must be > 0, got {self.friction_start}")
-        if not self.tension_slip >= 0.0:
-            raise ValueError(f"-newton_tension_slip must be >= 0, got {self.tension_slip}")
-        if self.watchdog < 0:
-            raise ValueError(f"-newton_watchdog must be >= 0, got {self.watchdog}")
-        if self.krylov_stall_its < 0:
-            raise ValueError(f"-newton_krylov_stall_its must be >= 0, got "
-                             f"{self.krylov_stall_its}")
-        if self.stall_its < 1:
-            raise ValueError(f"-newton_stall_its must be >= 1, got {self.stall_its}")
-        if self.continuation_levels < 0:
-            raise ValueError(f"-newton_continuation_levels must be >= 0, got "
-                             f"{self.continuation_levels}")
-        if not 0.0 <= self.load_substep_min <= 0.5:
-            raise ValueError(f"-newton_load_substep_min must be in [0, 0.5], got "
-                             f"{self.load_substep_min}")
-        if not 0.0 < self.linesearch_min <= 1.0:
-            raise ValueError(f"-newton_linesearch_min must be in (0, 1], got "
-                             f"{self.linesearch_min}")
+        for name, ok, bound in (
+                ("ew_max", 0.0 < self.ew_max < 1.0, "in (0, 1)"),
+                ("continuation_factor", 0.0 <= self.continuation_factor < 1.0, "in [0, 1)"),
+                ("friction_start", self.friction_start > 0.0, "> 0"),
+                ("tension_slip", self.tension_slip >= 0.0, ">= 0"),
+                ("watchdog", self.watchdog >= 0, ">= 0"),
+                ("krylov_stall_its", self.krylov_stall_its >= 0, ">= 0"),
+                ("stall_its", self.stall_its >= 1, ">= 1"),
+                ("continuation_levels", self.continuation_levels >= 0, ">= 0"),
+                ("load_substep_min", 0.0 <= self.load_substep_min <= 0.5, "in [0, 0.5]"),
+                ("linesearch_min", 0.0 < self.linesearch_min <= 1.0, "in (0, 1]")):
+            if not ok:
+                raise ValueError(f"-newton_{name} must be {bound}, got {getattr(self, name)}")
         if self.split is not None:                # the mixed u-p system (mixed.py)
             self.split.configure(self.ksp)
             self.linear.reuse_blocks = self.split.reuse_blocks
@@ -319,6 +310,18 @@ class CoulombNewton(LinearCounts, Loop):
         step builds a new one) or fails (then it is built anew and the solve repeated).
         Returns False when the linear solve failed."""
         _EV_KSP.begin()
+        self._direct_last = self.direct_step
+        if self.direct_step:             # (never with the split: fall_back_direct)
+            ok = solve_directly(self, K, rhs)
+        else:
+            ok = self._iterative_solve(K, rhs, rtol)
+        self.dx.pointwiseMult(self.dx, self.free)         # exact eliminated values
+        self.jac.set_at_contact(self.dx, self.jac.dirichlet)
+        self.direct_step = False
+        _EV_KSP.end()
+        return ok
+
+    def _iterative_solve(self, K, rhs, rtol):
         if self.split is not None:
             self.split.M.assemble()               # its blocks' contact rows changed
             b, sol = self.split.vecs(rhs, self.dx)
@@ -334,12 +337,10 @@ class CoulombNewton(LinearCounts, Loop):
                                if self.split is not None else None if self.mg is None else
                                lambda: self.mg.set_operators(self.ksp, K, self.jac.D))
         self._rebuild = self.linear.last_iterations > self.pc_rebuild_its
+        self.direct_streak = 0 if ok else self.direct_streak
         if self.split is not None:
             b.destroy()
             sol.destroy()
-        self.dx.pointwiseMult(self.dx, self.free)         # exact eliminated values
-        self.jac.set_at_contact(self.dx, self.jac.dirichlet)
-        _EV_KSP.end()
         return ok
 
     # -- solve ---------------------------------------------------------------------------------
@@ -351,6 +352,7 @@ class CoulombNewton(LinearCounts, Loop):
         self._gather_load()
         self._anorm = self.A.norm(PETSc.NormType.INFINITY)     # (before its rows change)
         self._stall_hint = None
+        self.direct_streak = 0
         if self.mg is not None:
             self.mg.set_interpolations(self.ksp)        # ksp.reset() drops them
         _EV_ITER.begin()
@@ -405,7 +407,8 @@ class CoulombNewton(LinearCounts, Loop):
     def _sets_text(self, t):
         s = self.comm.tompi4py().allreduce(np.array([self.n_active, self.n_stick,
                                                      self.n_slip]))
-        return (f"  (KSP its {self.ksp.getIterationNumber()}, step {t:g}; active {s[0]}, "
+        its = 1 if self._direct_last else self.ksp.getIterationNumber()
+        return (f"  (KSP its {its}, step {t:g}; active {s[0]}, "
                 f"stick {s[1]}, slip {s[2]})")
 
     def _monitor(self, it, res, extra=""):

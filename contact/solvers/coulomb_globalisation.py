@@ -37,6 +37,9 @@ STALLED = (DIVERGED_STAGNATION, DIVERGED_LINEAR_SOLVE)
 ROUNDOFF_FACTOR = 1e2
 #: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
 CONTINUATION_RTOL = 1e-8
+#: a Newton loop whose iterative linear solves failed at this many steps in a row (each
+#: then solved directly: fall_back_direct) solves the rest of its steps directly
+DIRECT_STREAK = 2
 
 
 def iterate(nt, x):
@@ -193,23 +196,52 @@ def load_stages(nt, x, scale, it, can_friction):
 
 def fall_back_direct(nt, it):
     """After step `it`'s failed iterative linear solve (a fresh preconditioner too): the
-    rest of this Newton loop solves directly, MUMPS's LU of the true Jacobian (no slip
-    rows held), where the system has at most -newton_direct_fallback dofs; not the mixed
-    split's system, nor one direct already. Returns whether it switched."""
+    step is solved again directly, MUMPS's LU of the true Jacobian (no slip rows held),
+    where the system has at most -newton_direct_fallback dofs; not the mixed split's
+    system, nor one direct already. The next step tries the iterative solve again (a
+    try that fails is short: -newton_krylov_stall_its); after DIRECT_STREAK failed steps
+    in a row the rest of this Newton loop solves directly. Returns whether the step is
+    solved directly."""
     n = nt.A.getSize()[0]
     if (nt.linear.direct or nt.split is not None or n > nt.direct_fallback
             or not PETSc.Sys.hasExternalPackage("mumps")):
         return False
-    nt.log(f"{' ' * nt.indent}{nt.title}: the linear solve of step {it} failed "
-           f"({nt.linear.hint('lu').split(';')[0]}); the rest of this loop solves directly "
-           f"(MUMPS LU, {n} dofs; -newton_direct_fallback)")
-    nt.ksp.setType(PETSc.KSP.Type.PREONLY)
-    pc = nt.ksp.getPC()
-    pc.setType(PETSc.PC.Type.LU)
-    pc.setFactorSolverType("mumps")
-    nt.pc_reuse, nt.jac.hold_slip = False, np.inf
     nt.direct_fallbacks += 1
+    nt.direct_streak += 1
+    why = (f"{' ' * nt.indent}{nt.title}: the linear solve of step {it} failed "
+           f"({nt.linear.hint('lu').split(';')[0]})")
+    if nt.direct_streak >= DIRECT_STREAK:
+        nt.log(f"{why}, {DIRECT_STREAK} steps in a row; the rest of this loop solves "
+               f"directly (MUMPS LU, {n} dofs; -newton_direct_fallback)")
+        nt.ksp.setType(PETSc.KSP.Type.PREONLY)
+        pc = nt.ksp.getPC()
+        pc.setType(PETSc.PC.Type.LU)
+        pc.setFactorSolverType("mumps")
+        nt.pc_reuse, nt.jac.hold_slip = False, np.inf
+    else:
+        if nt.direct_fallbacks == 1:
+            nt.log(f"{why}; the step solves directly (MUMPS LU, {n} dofs; "
+                   f"-newton_direct_fallback), as will any whose iterative solve fails")
+        nt.direct_step, nt.jac.hold_slip = True, np.inf
     return True
+
+
+def solve_directly(nt, K, rhs):
+    """nt.dx <- K^-1 rhs by MUMPS's LU, K the true Jacobian (fall_back_direct's step; the
+    next step's preconditioner holds the slip rows again). Returns whether it solved."""
+    if nt._direct is None:
+        nt._direct = PETSc.KSP().create(comm=nt.comm)
+        nt._direct.setType(PETSc.KSP.Type.PREONLY)
+        pc = nt._direct.getPC()
+        pc.setType(PETSc.PC.Type.LU)
+        pc.setFactorSolverType("mumps")
+    nt._direct.setOperators(K)
+    nt._direct.solve(rhs, nt.dx)
+    nt.linear.iterations += 1
+    nt.jac.hold_slip = nt.pc_hold_slip
+    ok = nt._direct.getConvergedReason() > 0
+    nt._direct.reset()                       # (its factors: as large as K, or more)
+    return ok
 
 
 def stage(nt, x, scale, it):

@@ -121,7 +121,9 @@ def test_large_friction_stalled_krylov_fails_fast():
     # then the rest of the loop by LU; now three stalled solves of 149-161
     print("Krylov iterations", pr.inner.linear.iterations)
     assert pr.inner.linear.iterations < 1000, pr.inner.linear.iterations
-    assert pr.inner.direct_fallbacks == 1
+    # (then LU for the rest of the loop; without MUMPS, PETSc 3.26 here, the stalled
+    # solves end the stage instead and friction continuation solves it: 494)
+    assert pr.inner.direct_fallbacks == int(PETSc.Sys.hasExternalPackage("mumps"))
     with options.inserted({"newton_ksp_type": "preonly", "newton_pc_type": "lu"}):
         ref = solve(scenes.validate(sc))
     (u, p), (ur, pref) = fields(pr), fields(ref)
