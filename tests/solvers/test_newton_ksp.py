@@ -11,8 +11,9 @@ newton_ksp.py `Stagnation`, -newton_krylov_stall_its), and otherwise as PETSc's 
   installed;
 * the paper's beam at F = 100, Nd 8 (from Nd 4's answer): its GMRES stalled three times at
   1.5e-2 of its start to 1000 iterations before falling back to LU (measured 3026 Krylov
-  iterations on that level, 13 s of a 14 s run); it now fails fast and reaches the answer
-  of direct solves throughout (another path: LU from the first step).
+  iterations on that level, 13 s of a 14 s run, then LU for the rest of the loop); it
+  now fails fast, that one step is solved by LU and the next ones by GMRES again, and it
+  reaches the answer of direct solves throughout (another path: LU from the first step).
 """
 import numpy as np
 import pytest
@@ -124,6 +125,8 @@ def test_large_friction_stalled_krylov_fails_fast():
     # (then LU for the rest of the loop; without MUMPS, PETSc 3.26 here, the stalled
     # solves end the stage instead and friction continuation solves it: 494)
     assert pr.inner.direct_fallbacks == int(PETSc.Sys.hasExternalPackage("mumps"))
+    # one step solved directly, the next ones iterative again (fall_back_direct)
+    assert not pr.inner.linear.direct
     with options.inserted({"newton_ksp_type": "preonly", "newton_pc_type": "lu"}):
         ref = solve(scenes.validate(sc))
     (u, p), (ur, pref) = fields(pr), fields(ref)
