@@ -73,8 +73,6 @@ class Stagnation:
         self.history.append(rnorm)
         if rnorm != rnorm or rnorm == float("inf"):
             return Reason.DIVERGED_NANORINF
-        if its == 0:
-            return Reason.ITERATING
         rtol, atol, divtol, max_it = ksp.getTolerances()
         ttol = max(rtol * self.r0, atol)
         if rnorm <= ttol:

@@ -131,3 +131,12 @@ def test_large_friction_stalled_krylov_fails_fast():
         ref = solve(scenes.validate(sc))
     (u, p), (ur, pref) = fields(pr), fields(ref)
     assert rel_err(u, ur) < 1e-8 and np.abs(p - pref).max() < 1e-8 * np.abs(pref).max()
+
+
+def test_zero_right_hand_side_converges_at_once_as_petsc():
+    A = _matrix(50, 1.0)
+    b = A.createVecLeft()
+    b.set(0.0)
+    r0 = _solve(A, b, "gmres", 1e-8, 0.0, 0)
+    r1 = _solve(A, b, "gmres", 1e-8, 0.0, 20)
+    assert (r1[0], r1[1]) == (r0[0], r0[1]) and r0[1] > 0 and r1[2].norm() == 0.0
