@@ -56,7 +56,11 @@ _EV_ITER = PETSc.Log.Event("Newton iterations")
 _EV_KSP = PETSc.Log.Event("Newton linear solve")
 _EV_RES = PETSc.Log.Event("Newton residual")
 
-EPS = float(np.finfo(PETSc.RealType).eps)
+#: GMRES's restart, and its largest where slip rows are held in the preconditioner (2
+#: more a node: the rank of E, which GMRES corrects; a Krylov vector a dof each: at Nd = 80 100 of them are 3.8 GB). Measured
+#: (the beam, 1 rank, runs/results/friction-large.md): F = 100 at Nd 16, 438 -> 265 Krylov
+#: iterations, 16.8 -> 9.5 s; at Nd 20, 911 -> 723, 66 -> 48 s, without the direct fallback
+RESTART, RESTART_MAX = 30, 100
 #: how often a stage holds one node after a reversal (held_reversals). Measured (1 rank,
 #: 2026-11-27): at every reversal the locked q1 beam at nu = 0.4999, Nd 4 (LU) ends in
 #: DIVERGED_STAGNATION; once, the plate 3 x 1 x 0.03 of aspect-20 q1 cells at nd 1 and 2
@@ -141,6 +145,7 @@ class CoulombNewton(LinearCounts, Loop):
         #: fall_back_direct's steps (in all, in a row); whether the next (last) one is; its KSP
         self.direct_fallbacks = self.direct_streak = 0
         self.direct_step, self._direct, self._direct_last = False, None, False
+        self._restart = None             # GMRES's restart where ours (RESTART)
 
     def check_options(self):
         for name, ok, bound in (
@@ -161,9 +166,11 @@ class CoulombNewton(LinearCounts, Loop):
             self.linear.reuse_blocks = self.split.reuse_blocks
             self.linear.setups += 1               # (A_g's preconditioner: set up there)
         else:
+            given = PETSc.Options().hasName(self.prefix + "ksp_gmres_restart")
             with options.inserted({self.prefix + "pc_gamg_reuse_interpolation": "true",
-                                   self.prefix + "ksp_gmres_restart": "30"}):
+                                   self.prefix + "ksp_gmres_restart": str(RESTART)}):
                 multigrid.configure(self.ksp, self.mg)
+            self._restart = RESTART if self.ksp.getType() == "gmres" and not given else None
         self.linear.watch_stagnation(self.krylov_stall_its)
         self.jac.storage(self.jacobian)
         self.ksp_rtol = self.ksp.getTolerances()[0]     # without -newton_ew: every solve's
@@ -331,6 +338,10 @@ class CoulombNewton(LinearCounts, Loop):
             self.ksp.setOperators(self.jac.op, K)     # (op: K, or K + the held slip rows)
             b, sol = rhs, self.dx
         self.ksp.setTolerances(rtol=rtol)
+        k = min(RESTART_MAX, RESTART + 2 * self.jac.held)    # (2 a held slip node: E's rank)
+        if self._restart not in (None, k):
+            self._restart = k
+            self.ksp.setGMRESRestart(k)
         reuse = self.pc_reuse and self.pc_setups > 0 and not self._rebuild
         ok = self.linear.solve(b, sol, reuse,
                                (lambda: self.split.coarse_operators(self.ksp))
@@ -374,14 +385,6 @@ class CoulombNewton(LinearCounts, Loop):
              f"{self._rtol:g}") if reason == CONVERGED_ROUNDOFF else None
         self.finish(it, reason, hint)
         return x
-
-    def _floor(self, x):
-        """The round-off floor of ||r(x)||: eps ||A||_inf ||x||_2 bounds the rounding error
-        of evaluating A x (||(|A| |x|)||_2 <= ||A||_inf ||x||_2, A symmetric), the part of
-        r that no iterate can remove; large where |A| |x| >> |A x| (nu -> 0.5: lambda
-        >> mu). Measured: the residual stagnates 2.5-12x below it (q2p1 and bbar at nu =
-        0.49999 - 0.499999, q2p1 at 0.3 with -newton_rtol 1e-16)."""
-        return EPS * self._anorm * x.norm()
 
     def _note(self, it, text):
         """A line of the monitor about the iteration itself (continuation)."""

@@ -32,9 +32,10 @@ DIVERGED_STAGNATION = "DIVERGED_STAGNATION"
 #: watchdog's full steps: a thin plate, runs/stability.py)
 STALLED = (DIVERGED_STAGNATION, DIVERGED_LINEAR_SOLVE)
 #: a stage that stalls with its lowest residual within this factor of its round-off floor
-#: (`_floor`; below the floor it has converged: CONVERGED_ROUNDOFF) is not helped by a
+#: (`roundoff_floor`; below the floor it has converged: CONVERGED_ROUNDOFF) is not helped by a
 #: continuation: DIVERGED_STAGNATION at once, with a hint to raise -newton_rtol
 ROUNDOFF_FACTOR = 1e2
+EPS = float(np.finfo(PETSc.RealType).eps)
 #: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
 CONTINUATION_RTOL = 1e-8
 #: a Newton loop whose iterative linear solves failed at this many steps in a row (each
@@ -226,6 +227,15 @@ def fall_back_direct(nt, it):
     return True
 
 
+def roundoff_floor(nt, x):
+    """The round-off floor of ||r(x)||: eps ||A||_inf ||x||_2 bounds the rounding error of
+    evaluating A x (||(|A| |x|)||_2 <= ||A||_inf ||x||_2, A symmetric), the part of r that
+    no iterate can remove; large where |A| |x| >> |A x| (nu -> 0.5: lambda >> mu).
+    Measured: the residual stagnates 2.5-12x below it (q2p1 and bbar at nu = 0.49999 -
+    0.499999, q2p1 at 0.3 with -newton_rtol 1e-16)."""
+    return EPS * nt._anorm * x.norm()
+
+
 def solve_directly(nt, K, rhs):
     """nt.dx <- K^-1 rhs by MUMPS's LU, K the true Jacobian (fall_back_direct's step; the
     next step's preconditioner holds the slip rows again). Returns whether it solved."""
@@ -331,7 +341,7 @@ def stage(nt, x, scale, it):
         nt.n_active = int(st["active"].sum())
         nt.n_stick, nt.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
         reason = nt.test(it, nr, scale)
-        floor = nt._floor(x)
+        floor = roundoff_floor(nt, x)
         if reason is None and nr <= floor and bests[-1] > 0.5 * bests[-2]:
             # no longer falling, within the rounding error of evaluating r itself
             reason = CONVERGED_ROUNDOFF

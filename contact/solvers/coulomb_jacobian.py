@@ -93,6 +93,7 @@ class CoulombJacobian:
         #: the stored matrix holds the slip nodes of friction above hold_slip, their slip
         #: rows in E (_hold_slip); op: the Krylov method's operator, K or K + E (MATPYTHON)
         self.hold_slip = np.inf
+        self.held = 0                    # slip nodes held at the last step (all ranks)
         self.E = self._plus = None
         self.op = self.K
         self._applied = None             # separate: the D that K holds now
@@ -309,8 +310,9 @@ class CoulombJacobian:
         beam at Nd 16, F = 1e4, 68 Krylov iterations held, 559 not); E has rank 2 a node,
         which GMRES corrects. Collective."""
         p = np.flatnonzero(Fq > self.hold_slip) if V is not None else []
-        if not self.hold_slip < np.inf or \
-                not self.comm.tompi4py().allreduce(len(p), op=MPI.SUM):
+        self.held = self.comm.tompi4py().allreduce(len(p), op=MPI.SUM) \
+            if self.hold_slip < np.inf else 0
+        if not self.held:
             self.op = self.K
             return
         if self.E is None:
