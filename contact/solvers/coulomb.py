@@ -57,9 +57,10 @@ _EV_KSP = PETSc.Log.Event("Newton linear solve")
 _EV_RES = PETSc.Log.Event("Newton residual")
 
 #: GMRES's restart, and its largest where slip rows are held in the preconditioner (2
-#: more a node: the rank of E, which GMRES corrects; a Krylov vector a dof each: at Nd = 80 100 of them are 3.8 GB). Measured
-#: (the beam, 1 rank, runs/results/friction-large.md): F = 100 at Nd 16, 438 -> 265 Krylov
-#: iterations, 16.8 -> 9.5 s; at Nd 20, 911 -> 723, 66 -> 48 s, without the direct fallback
+#: more a node: the rank of E, which GMRES corrects; a Krylov vector a dof each: at Nd = 80
+#: 100 of them are 3.8 GB). Measured (the beam, 1 rank, runs/results/friction-large.md):
+#: F = 100 at Nd 16, 438 -> 265 Krylov iterations, 16.8 -> 8.8 s; at Nd 20, 911 -> 658,
+#: 66 -> 43 s, without the direct fallback
 RESTART, RESTART_MAX = 30, 100
 #: how often a stage holds one node after a reversal (held_reversals). Measured (1 rank,
 #: 2026-11-27): at every reversal the locked q1 beam at nu = 0.4999, Nd 4 (LU) ends in

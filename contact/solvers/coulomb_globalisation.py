@@ -214,10 +214,7 @@ def fall_back_direct(nt, it):
     if nt.direct_streak >= DIRECT_STREAK:
         nt.log(f"{why}, {DIRECT_STREAK} steps in a row; the rest of this loop solves "
                f"directly (MUMPS LU, {n} dofs; -newton_direct_fallback)")
-        nt.ksp.setType(PETSc.KSP.Type.PREONLY)
-        pc = nt.ksp.getPC()
-        pc.setType(PETSc.PC.Type.LU)
-        pc.setFactorSolverType("mumps")
+        _mumps_lu(nt.ksp)
         nt.pc_reuse, nt.jac.hold_slip = False, np.inf
     else:
         if nt.direct_fallbacks == 1:
@@ -225,6 +222,15 @@ def fall_back_direct(nt, it):
                    f"-newton_direct_fallback), as will any whose iterative solve fails")
         nt.direct_step, nt.jac.hold_slip = True, np.inf
     return True
+
+
+def _mumps_lu(ksp):
+    """ksp as a direct solve, MUMPS's LU (the fall-back's). Returns it."""
+    ksp.setType(PETSc.KSP.Type.PREONLY)
+    pc = ksp.getPC()
+    pc.setType(PETSc.PC.Type.LU)
+    pc.setFactorSolverType("mumps")
+    return ksp
 
 
 def roundoff_floor(nt, x):
@@ -240,11 +246,7 @@ def solve_directly(nt, K, rhs):
     """nt.dx <- K^-1 rhs by MUMPS's LU, K the true Jacobian (fall_back_direct's step; the
     next step's preconditioner holds the slip rows again). Returns whether it solved."""
     if nt._direct is None:
-        nt._direct = PETSc.KSP().create(comm=nt.comm)
-        nt._direct.setType(PETSc.KSP.Type.PREONLY)
-        pc = nt._direct.getPC()
-        pc.setType(PETSc.PC.Type.LU)
-        pc.setFactorSolverType("mumps")
+        nt._direct = _mumps_lu(PETSc.KSP().create(comm=nt.comm))
     nt._direct.setOperators(K)
     nt._direct.solve(rhs, nt.dx)
     nt.linear.iterations += 1

@@ -412,8 +412,9 @@ def test_failed_linear_solve_falls_back_to_a_direct_one(capsys):
     """-newton_direct_fallback: a Newton step whose GMRES fails, a fresh preconditioner too
     (here made to by -newton_ksp_max_it 2), is solved again directly (MUMPS LU of the true
     Jacobian); the next step's fails too, and the loop goes on directly: the same answer
-    as the plain run (1e-9), one line saying so, the KSP direct afterwards. With the fallback off (0) or the system
-    larger than N the same run ends DIVERGED_LINEAR_SOLVE with its hint. (The beam at
+    as the plain run (1e-9), one line saying so, the KSP direct afterwards. With the
+    fallback off (0) or the system larger than N the same run ends DIVERGED_LINEAR_SOLVE
+    with its hint. (The beam at
     Nd 16, F = 1e6, where GMRES + multigrid breaks down at step 38-54: 38 steps and 8 s
     with the fallback, the answer of an LU run from the start; stability-fbig.md.)"""
     ref = solve(_beam(4, 0.3))
