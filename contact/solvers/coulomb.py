@@ -69,7 +69,9 @@ RESTART, RESTART_MAX = 30, 100
 HOLD_LIMIT = 2
 #: how often a stage gives one node the slip piece after it opened (pulled_to_slip).
 #: Measured (1 rank, 2026-11-27, the beam at Nd 12): once, F = 1e6 took 11 + 24 Newton
-#: steps (Nd 6 + Nd 12); twice, 11 + 11 (F = 1000: 11 + 10 either way)
+#: steps (Nd 6 + Nd 12); twice, 11 + 11 (F = 1000: 11 + 10 either way); never, F = 100 at
+#: Nd 12 took 32 steps instead of 20. Where the limit leaves the front's nodes to cycle
+#: between held and open (an exact 2-cycle: Nd 16, F = 1e6) they get PULL_LIMIT more
 PULL_LIMIT = 2
 
 
@@ -250,7 +252,8 @@ class CoulombNewton(LinearCounts, Loop):
         R_t - w F a_n n in the right-hand side), where F > -newton_tension_slip, in a
         stage that climbs to a larger friction from the solution at a smaller one
         (friction_stages) or starts from a coarser mesh's answer, at most PULL_LIMIT
-        times a node and stage. At a large F the answer's contact front has
+        times a node and stage (and again after an exact 2-cycle of sets: the nodes that
+        the limit left to alternate between held and open; coulomb_globalisation.py). At a large F the answer's contact front has
         nodes that slip with a pressure near 0 and a tangential traction F times it (the
         beam's corners at F = 1000: p = 0.083, |l_t| = 83): held, they pull (tension);
         open, the next step presses them in and holds them; the slip window

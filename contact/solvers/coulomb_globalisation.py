@@ -38,6 +38,17 @@ ROUNDOFF_FACTOR = 1e2
 EPS = float(np.finfo(PETSc.RealType).eps)
 #: the tolerance of a continuation's intermediate stages (at least -newton_rtol)
 CONTINUATION_RTOL = 1e-8
+#: a full step that raises the residual above this many times the watch point's ends the
+#: watchdog's full steps at once (back to the watch point, backtracking along its step): the
+#: watchdog lets ||r|| rise while the sets cross kinks, not by orders of magnitude. Measured
+#: (the beam, 1 rank, runs/results/friction-large.md): F = 100 from Nd 4's answer at Nd 8
+#: rose 0.39 -> 5.3 -> 126 in six full steps that led nowhere; 13 -> 7 Newton steps. Not
+#: for a body the foundation alone holds (close_first): its heel lifts through such rises
+#: (runs/stability.py: gap-varying-xy-nd8-F100 and held-nd24-s8-q0.95 then fail)
+WATCHDOG_RISE = 10.0
+#: an exact 2-cycle: the residual norm within this factor of, and the sets equal to, those
+#: of two steps before (two_cycle)
+CYCLE_RTOL = 1e-10
 #: a Newton loop whose iterative linear solves failed at this many steps in a row (each
 #: then solved directly: fall_back_direct) solves the rest of its steps directly
 DIRECT_STREAK = 2
@@ -256,6 +267,20 @@ def solve_directly(nt, K, rhs):
     return ok
 
 
+def two_cycle(nt, last, nr, st):
+    """Whether the step that gave ||r|| = nr and the sets of st closes an exact 2-cycle:
+    the residual norm and the active, stick and slip sets those of two steps before. last:
+    the stage's states of the last steps (updated here). Collective."""
+    code = np.where(st["active"], np.where(st["stick"], 1, 2), 0)
+    last.append((nr, code))
+    if len(last) < 3:
+        return False
+    nr2, code2 = last.pop(0)
+    if abs(nr2 - nr) > CYCLE_RTOL * nr:             # (nr: the same on every rank)
+        return False
+    return nt.comm.tompi4py().allreduce(bool(np.array_equal(code2, code)), op=MPI.LAND)
+
+
 def stage(nt, x, scale, it):
     """Newton from x at the friction nt.F to nt._rtol (relative to scale); it: the
     iterations so far. Returns (it, reason): converged, DIVERGED_STAGNATION,
@@ -278,6 +303,7 @@ def stage(nt, x, scale, it):
     # slip row's residual R_t - w F a_n n carries F times the normal rows' error
     ew_max = nt.ew_max / max(1.0, friction_max(nt))
     reason, eta, nr_old, bests = None, ew_max, None, [nr]   # lowest ||r|| so far
+    last = []                                        # the last steps' (||r||, sets)
     xw, dxw = nt.xw, nt.dxw
     x.copy(xw)
     nrw, stw, kw, save_dir = nr, st, 0, True         # the watch point
@@ -340,6 +366,12 @@ def stage(nt, x, scale, it):
             nrw, stw, kw, save_dir = nr, st, 0, True
         else:                                        # a full step without decrease
             kw += 1
+            if nr > WATCHDOG_RISE * nrw and not nt.close_first:
+                kw = max(kw, nt.watchdog)            # not a kink: the watchdog bites
+        if two_cycle(nt, last, nr, st) and nt.climbing:
+            nt._pulls = 0          # PULL_LIMIT pulls more a node (coulomb.pulled_to_slip)
+            nt._note(it, "an exact 2-cycle of sets: the open nodes may be pulled to slip "
+                         "again")
         nt.n_active = int(st["active"].sum())
         nt.n_stick, nt.n_slip = int(st["stick"].sum()), int(st["slip"].sum())
         reason = nt.test(it, nr, scale)
