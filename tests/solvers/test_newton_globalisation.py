@@ -338,23 +338,14 @@ def _thin_plate(nd):
 
 
 @pytest.mark.parametrize("nd", [1, 2])
-def test_thin_plate_slip_reversal_is_held(nd, monkeypatch):
+def test_thin_plate_slip_reversal_is_held(nd):
     """The plate's iteration cycled between opposite slip directions at the same sets (also
     with exact linear solves) to DIVERGED_MAX_IT at 100; holding a node whose slip direction
     reversed (-newton_hold_reversals, default) converges in 6 (nd 1) and 9 (nd 2) steps on
     1 rank (11 and 78 on 2),
     to the answer of the paper's loops (fast mode, tight tolerances: another algorithm).
-    Without the hold it still fails on 1 rank with PETSc 3.18 (checked there). At nd 1 the
-    watchdog's full steps as they were (no bite at a rise above WATCHDOG_RISE): with it the
-    path meets no reversal (5 steps, measured, also without the hold)."""
-    if nd == 1:
-        monkeypatch.setattr(coulomb_globalisation, "WATCHDOG_RISE", np.inf)
-        pr = solve(_thin_plate(nd))
-        monkeypatch.undo()
-        assert solve(_thin_plate(nd)).inner.iterations <= 8
-        monkeypatch.setattr(coulomb_globalisation, "WATCHDOG_RISE", np.inf)
-    else:
-        pr = solve(_thin_plate(nd))
+    Without the hold it still fails on 1 rank with PETSc 3.18 (checked there)."""
+    pr = solve(_thin_plate(nd))
     # measured 6 and 9 steps on 1 rank; 11 and 78 on 2 (partitioned smoothers; nd 2
     # without the hold: DIVERGED_MAX_IT at 100 there too)
     most = 12 if pr.comm.getSize() == 1 else 90
@@ -402,10 +393,8 @@ def test_large_friction_climbs_from_a_smaller_one():
 @skip_in_parallel
 def test_large_friction_steps_at_most_twice_small_friction():
     """The beam at Nd 12 (levels Nd 6, 12): F = 1000 in at most twice the Newton steps of
-    F = 0.3 (measured 11 + 6 against 8 + 4); without the climb's aids the default iteration
-    ended in DIVERGED_MAX_IT (the issue's report, friction-large.md), and with the watchdog's
-    bite at a large rise (WATCHDOG_RISE) it takes 86 + 80 steps through five continuation
-    levels (measured)."""
+    F = 0.3 (measured 11 + 6 against 8 + 4); without the climb's aids the default iteration ends
+    in DIVERGED_MAX_IT (measured: the issue's report, friction-large.md)."""
     def beam(friction):
         sc = paper_scene(nd=12, mode="newton")
         sc["contact"]["friction"] = friction
@@ -415,12 +404,8 @@ def test_large_friction_steps_at_most_twice_small_friction():
     assert big.converged and max(big.residuals.values()) < 1e-8, big.residuals
     assert _steps(big) <= 2 * _steps(small), (_steps(big), _steps(small))
     with options.inserted(FULL_F):
-        try:
-            bare = _steps(solve(beam(1000.0)))
-        except ConvergenceError as e:
-            assert "Newton loop did not converge" in str(e)
-            bare = np.inf
-    assert bare > 4 * _steps(big), bare
+        with pytest.raises(ConvergenceError, match="Newton loop did not converge"):
+            solve(beam(1000.0))
 
 
 def test_a_large_rise_makes_the_watchdog_bite(monkeypatch):
@@ -440,6 +425,26 @@ def test_a_large_rise_makes_the_watchdog_bite(monkeypatch):
     assert ref.converged and ref.inner.iterations >= 11, ref.inner.iterations
     (u, p), (ur, pref) = fields(pr), fields(ref)
     assert rel_err(u, ur) < 1e-8 and np.abs(p - pref).max() < 1e-8 * np.abs(pref).max()
+
+
+def test_the_watchdog_keeps_its_rises_at_small_friction():
+    """The locked q1 beam at nu = 0.4999, F = 0.3, Nd 4 (runs/element.py's row; exact
+    solves) reaches its answer through full steps that raise the residual 30-100x: the bite
+    at WATCHDOG_RISE is only for frictions above -newton_friction_start. Measured: with the
+    bite at every friction the iteration stalled through every fall-back
+    (DIVERGED_STAGNATION at step 88); as the watchdog was, 22 steps."""
+    if PETSc.COMM_WORLD.getSize() > 1 and not PETSc.Sys.hasExternalPackage("mumps"):
+        pytest.skip("a parallel LU needs MUMPS")
+    sc = paper_scene(nd=4, mode="newton")
+    sc["mesh"]["element"] = "q1"
+    sc["material"]["poisson"] = 0.4999
+    lu = {"newton_ksp_type": "preonly", "newton_pc_type": "lu", "newton_rtol": "1e-9"}
+    if PETSc.Sys.hasExternalPackage("mumps"):
+        lu["newton_pc_factor_mat_solver_type"] = "mumps"
+    with options.inserted(lu):
+        pr = solve(scenes.validate(sc))
+    assert pr.converged and pr.inner.iterations <= 30, pr.inner.iterations
+    assert max(pr.residuals.values()) < 1e-6, pr.residuals
 
 
 def test_two_cycle_is_the_same_sets_and_residual_two_steps_back():
