@@ -252,9 +252,9 @@ class CoulombNewton(LinearCounts, Loop):
         R_t - w F a_n n in the right-hand side), where F > -newton_tension_slip, in a
         stage that climbs to a larger friction from the solution at a smaller one
         (friction_stages) or starts from a coarser mesh's answer, at most PULL_LIMIT
-        times a node and stage (and again after an exact 2-cycle of sets: the nodes that
-        the limit left to alternate between held and open; coulomb_globalisation.py). At a large F the answer's contact front has
-        nodes that slip with a pressure near 0 and a tangential traction F times it (the
+        times a node and stage (again after an exact 2-cycle of sets: two_cycle). At a
+        large F the answer's contact front has nodes that slip with a pressure near 0
+        and a tangential traction F times it (the
         beam's corners at F = 1000: p = 0.083, |l_t| = 83): held, they pull (tension);
         open, the next step presses them in and holds them; the slip window
         0 <= a_n < |z| / F between is never met and the iteration cycles. The slip

@@ -296,8 +296,11 @@ def stage(nt, x, scale, it):
     change by many nodes crosses kinks where ||r|| rises on the way). Then the
     iteration goes back to the watch point and backtracks along its Newton direction
     (Armijo on ||r||, down to -newton_linesearch_min, that step taken also without a
-    decrease). The stage has stalled when -newton_stall_its steps have not halved the
-    lowest residual."""
+    decrease). At a friction above -newton_friction_start on a clamped body the
+    watchdog bites at once where a full step raises the residual above WATCHDOG_RISE
+    times the watch point's. An exact 2-cycle of sets (`two_cycle`) in a stage that
+    climbs gives the nodes their pulls to the slip piece again. The stage has stalled
+    when -newton_stall_its steps have not halved the lowest residual."""
     glued = x.norm() == 0.0
     first = it + 1
     nt.forget_slip()
@@ -306,7 +309,7 @@ def stage(nt, x, scale, it):
     # slip row's residual R_t - w F a_n n carries F times the normal rows' error
     fmax = friction_max(nt)
     ew_max = nt.ew_max / max(1.0, fmax)
-    # the watchdog bites at a rise above WATCHDOG_RISE (there: not where it is needed)
+    # a full step's rise above WATCHDOG_RISE x the watch point's ends the full steps
     bite = fmax > nt.friction_start and not nt.close_first
     reason, eta, nr_old, bests = None, ew_max, None, [nr]   # lowest ||r|| so far
     last = []                                        # the last steps' (||r||, sets)
