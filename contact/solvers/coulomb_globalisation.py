@@ -377,7 +377,7 @@ def stage(nt, x, scale, it):
             kw += 1
             if bite and nr > WATCHDOG_RISE * nrw:
                 kw = max(kw, nt.watchdog)            # not a kink: the watchdog bites
-        if two_cycle(nt, last, nr, st) and nt.climbing:
+        if nt.climbing and two_cycle(nt, last, nr, st):   # (climbing: the whole stage)
             nt._pulls = 0          # PULL_LIMIT pulls more a node (coulomb.pulled_to_slip)
             nt._note(it, "an exact 2-cycle of sets: the open nodes may be pulled to slip "
                          "again")
