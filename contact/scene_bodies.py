@@ -22,12 +22,15 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1 or q2 (mesh.element or -element; auto is q1), slave faces a flat side of their
-body (normal to x, y or z; pairs may face different axes). With q2 a pair couples the
-elements' 9-node faces (biquadratic, isoparametric, their dual basis: fem/mortar_q2.py),
-whose edges must be straight seen along the pair's normal: graded bodies and a
-lower_surface master on a pair along z are; a lower_surface body's side faces in a pair
-along x or y are refused in one line (use q1).
+version: q1 or q2 (a body's `element:`, else mesh.element or -element; auto is q1), slave
+faces a flat side of their body (normal to x, y or z; pairs may face different axes). With
+q2 a pair couples the elements' 9-node faces (biquadratic, isoparametric, their dual basis:
+fem/mortar_q2.py), whose edges must be straight seen along the pair's normal: graded bodies
+and a lower_surface master on a pair along z are; a lower_surface body's side faces in a
+pair along x or y are refused in one line (use q1). Bodies may mix the two: then every
+body has the q2 nodes (the mesh refined once more), and a q1 body's cells are those of
+that node mesh, 8 to each of its `cells` x nd (the q2 element's nodes, each eighth a q1
+cell: fem/element.py); a pair may couple a q1 and a q2 face (fem/mortar.py).
 A contact part may have its own `friction:` (a number or an expression, as
 contact.friction) on its nodes.
 
@@ -58,7 +61,8 @@ import numpy as np
 
 from contact import expression, scene_grading
 
-BODY_KEYS = ("lower", "upper", "cells", "material", "grading", "lower_surface", "mesh")
+BODY_KEYS = ("lower", "upper", "cells", "material", "element", "grading", "lower_surface",
+             "mesh")
 #: the elements of a scene with several bodies (auto: q1)
 BODY_ELEMENTS = ("auto", "q1", "q2")
 
@@ -84,6 +88,10 @@ def expand(scene):
         if not isinstance(b, dict) or any(k not in BODY_KEYS for k in b):
             raise SceneError(f"{where} must be a mapping of {', '.join(BODY_KEYS)}, got "
                              f"{shown(b)}")
+        if b.get("element", "q1") not in BODY_ELEMENTS[1:]:
+            raise SceneError(f"{where}: element must be q1 or q2 (each body its own; "
+                             f"without it the scene's: -element, mesh.element), got "
+                             f"{shown(b['element'])}")
         if "mesh" in b:
             _body_mesh(b, where)
             continue
@@ -133,9 +141,9 @@ def _body_mesh(b, where):
     """A gmsh body: {mesh: {type: gmsh (a .geo or .msh) or file (a .msh, read by gmsh
     too), file, parameters: {name: number}}, material}; the file must exist."""
     SceneError, shown, m = _scene.SceneError, _scene._shown, b["mesh"]
-    if set(b) - {"mesh", "material"}:
-        raise SceneError(f"{where}: a body with a mesh has only mesh and material, not "
-                         f"{', '.join(sorted(set(b) - {'mesh', 'material'}))}")
+    if set(b) - {"mesh", "material", "element"}:
+        raise SceneError(f"{where}: a body with a mesh has only mesh, material and element, "
+                         f"not {', '.join(sorted(set(b) - {'mesh', 'material', 'element'}))}")
     if not isinstance(m, dict) or set(m) - {"type", "file", "parameters"} or \
             m.get("type") not in ("gmsh", "file") or not isinstance(m.get("file"), str):
         raise SceneError(f"{where}: mesh must be {{type: gmsh|file, file: <.geo or .msh>, "

@@ -131,15 +131,19 @@ def test_two_bodies(friction):
         assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
 
 
+@pytest.mark.parametrize("punch", ["q2", "q1"])
 @pytest.mark.parametrize("friction", [0.0, 0.3])
-def test_two_bodies_q2(friction):
+def test_two_bodies_q2(friction, punch):
     """test_two_bodies with the q2 element (the pair couples 9-node faces, each rank
-    putting its own together before the surfaces are gathered: fem/pairs.py)."""
+    putting its own together before the surfaces are gathered: fem/pairs.py); and with a
+    q1 punch (8 trilinear cells an element) on the q2 base: 4-node slave faces."""
     sc = two_blocks(friction=friction, base_cells=3, punch_cells=2,
                     base=((-0.1, -0.1), (1.1, 1.1)), push=(0.002, 0.002, -0.004))
     sc["mesh"] = {"element": "q2"}
+    sc["bodies"]["punch"]["element"] = punch
     du, dp, par, ser = _compare(sc, EXACT)
     assert par.element == "q2" and du < TOL and dp < TOL, (du, dp)
+    assert par.disc.mixed == (punch == "q1")
     assert par.iterations()["inner_total"] == ser.iterations()["inner_total"]
 
 

@@ -202,7 +202,8 @@ def of_run(problem, s):
     this = {"max_displacement": s["max_displacement"], "energy": s["energy"],
             "normal_force": cr.get("normal"), "tangential_force": cr.get("tangential")}
     levels = [(r["nd"], r["quantities"]) for r in problem.coarse_runs if "quantities" in r]
-    est = from_levels(levels + [(problem.nd, this)], problem.element)
+    est = from_levels(levels + [(problem.nd, this)],   # (q1 and q2 bodies: q1's orders)
+                      "q1" if problem.disc.mixed else problem.element)
     if est is not None and "tangential_force" in est and s["mode"] == "frictionless":
         est["tangential_force"].update(error=None, order=None, extrapolated=None,
                                        note=FRICTIONLESS)

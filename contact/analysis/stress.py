@@ -161,6 +161,12 @@ def body_stress(problem, u=None):
                     lam, mu = per[0][f], per[1][f, None, None]
                 s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
                                            None if theta is None else theta[f // 8, o])
+        lin = problem.disc.linear               # a q1 body's cells beside q2 bodies: q1's
+        cells = np.flatnonzero(lin[np.arange(nc) // 8]) if lin is not None else []
+        for a in range(0, len(cells), fem.CHUNK):
+            f = cells[a:a + fem.CHUNK]
+            lam, mu = per[0][f], per[1][f, None, None]
+            s[f], vol[f] = cell_stress(coords[conn[f]], ul[conn[f]], lam, mu)
     vals = np.column_stack([s * vol[:, None], vol])               # summed at the nodes
     acc = np.column_stack([np.bincount(conn.ravel(), weights=np.repeat(vals[:, k], 8),
                                        minlength=coords.shape[0]) for k in range(7)])

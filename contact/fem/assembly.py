@@ -155,7 +155,8 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     (young, poisson) (a split of the volumetric stiffness, mixed.py). lattice: the cells'
     mesh.lattice, where they are a box of identical cells on one process: then A is
     their stencil (fem/stencil.py) instead of their sum, cell by cell. groups: [(cells,
-    young, poisson)], a material per group of cells (several bodies) instead of one. pair:
+    young, poisson[, element])], a material (and an element: q1 on a q2 mesh's elements,
+    fem/element.py) per group of cells (several bodies) instead of one. pair:
     a contact pair (fem/pairs.py): A~ = Z^T A Z, the element matrices of the cells at its
     slave nodes turned and added at their nodes' and the coupled master nodes' blocks
     (pair.add_turned; preallocated: pair.pattern)."""
@@ -179,9 +180,10 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         idx_type = PETSc.IntType
         _EV_ASSEMBLE.begin()
         turned = []                             # a pair's cells at its slave nodes
-        for cells, lam_g, mu_g in ([(conn, lam, mu)] if groups is None else
-                                   [(conn[g], *lame(e, p)) for g, e, p in groups]):
-            for c, Ke in _element_matrices(cells, coords, lam_g, mu_g, element, frame):
+        for cells, lam_g, mu_g, el in ([(conn, lam, mu, element)] if groups is None else
+                                       [(conn[g[0]], *lame(*g[1:3]), g[3] if len(g) > 3
+                                         else element) for g in groups]):
+            for c, Ke in _element_matrices(cells, coords, lam_g, mu_g, el, frame):
                 if pair is not None:
                     t = pair.turns(lgb[c])
                     turned.append((lgb[c[t]], Ke[t]))
@@ -286,9 +288,10 @@ def local_to_global(dm, local_array, gvec=None):
     return gvec
 
 
-def load_vector(dm, conn, coords, tractions, body_force, roles=None):
+def load_vector(dm, conn, coords, tractions, body_force, roles=None, linear=None):
     """b: tractions [(faces (nf,4), p (3,))] and a constant body force f (3,) on the
-    elements conn (n, 8) or (n, 27); roles: nodal_face_weights' (q2)."""
+    elements conn (n, 8) or (n, 27); roles: nodal_face_weights' (q2); linear: (n,) the
+    elements (n, 27) that are q1's (a q1 body beside q2 bodies), or None."""
     nv = coords.shape[0]
     loc = np.zeros((nv, 3))
     for faces, p in tractions:
@@ -301,7 +304,11 @@ def load_vector(dm, conn, coords, tractions, body_force, roles=None):
         step = chunk(conn)
         for s in range(0, conn.shape[0], step):
             c = conn[s:s + step]
-            np.add.at(wv, c.ravel(), element_volume_weights(coords[c]).ravel())
+            w = element_volume_weights(coords[c])
+            if linear is not None and linear[s:s + step].any():
+                q1 = linear[s:s + step]
+                w[q1] = element_volume_weights(coords[c[q1]], "q1")
+            np.add.at(wv, c.ravel(), w.ravel())
         loc += wv[:, None] * f[None, :]
     return local_to_global(dm, loc.ravel())
 

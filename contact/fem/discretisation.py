@@ -40,7 +40,22 @@ RHO_LAMBDA_CAP = 1.5
 def element_of(scene):
     """The element of a run (fem.ELEMENTS): -element (or the scene's mesh.element); auto:
     q1 in the paper's faithful mode, else q2p1 where nu >= AUTO_LOCKFREE_NU, else q1. (q2's
-    mesh hierarchy is built for its nodes: problem.py asks here first.)"""
+    mesh hierarchy is built for its nodes: problem.py asks here first.) Several bodies:
+    q2 where one of them is (body_elements), else q1."""
+    els = body_elements(scene)
+    return _element(scene) if els is None else ("q2" if "q2" in els else "q1")
+
+
+def body_elements(scene):
+    """Each body's element (a body's own `element:`, else the run's: -element or
+    mesh.element), or None for a scene of one body."""
+    if "bodies" not in scene:
+        return None
+    el = _element(scene)
+    return [b.get("element", el) for b in scene["bodies"].values()]
+
+
+def _element(scene):
     el = options.get("element", scene)
     if el == "auto" and "bodies" in scene:
         el = "q1"
@@ -53,6 +68,21 @@ def element_of(scene):
         raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
                          f"got {el!r}")
     return el
+
+
+def q1_beside_q2(disc):
+    """(body elements, mixed, linear, roles) of Discretisation disc: each body's element
+    (body_elements) and whether they are both; then a q1 body has the q2 elements' 27
+    nodes, an element its 8 cells as q1 cells (fem/element.py): `linear` (ne,) marks its
+    elements, roles its vertices Q1_ROLE (q1 faces) among the q2 roles; else (..., False,
+    None, disc.roles)."""
+    els = body_elements(disc.scene)
+    if els is None or len(set(els)) < 2:
+        return els, False, None, disc.roles
+    linear = (np.array(els) == "q1")[disc.body_of[::8]]  # (element p: cells 8 p .. 8 p + 7)
+    roles = disc.roles.copy()
+    roles[disc.elements[linear].ravel()] = mesh.Q1_ROLE
+    return els, True, linear, roles
 
 
 class Discretisation:
@@ -153,11 +183,11 @@ class Discretisation:
             self.elements, self.roles = self.quadratic.conn, self.quadratic.roles
             self.lattice = None
             self.nd = self.quadratic.nd              # the element mesh's
-
+        #: several bodies: each one's element; q1 beside q2 bodies: mixed (q1_beside_q2)
+        self.body_element, self.mixed, self.linear, self.roles = q1_beside_q2(self)
         self._parts()
         self._contact_set()
-        mat = sc["material"]
-        blocked = self.blocked                  # BAIJ (a rediscretised coarse operator)
+        mat, blocked = sc["material"], self.blocked   # BAIJ: a rediscretised coarse operator
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
                                         element=self.element, blocked=blocked,
@@ -177,12 +207,13 @@ class Discretisation:
         self.n_dofs = self.A.getSize()[0]
 
     def _materials(self):
-        """[(cells, young, poisson)] per body, or None (one body: the scene's material)."""
+        """[(cells, young, poisson[, element: q1 beside q2])] per body, or None (one body)."""
         if self.bodies is None:
             return None
         # q2: element p is the parent of the cells 8 p .. 8 p + 7 (hierarchy.QuadraticCells)
-        return mesh_bodies.material_groups(self.bodies, self.body_of if self.quadratic is
-                                           None else self.body_of[::8])
+        return mesh_bodies.material_groups(self.bodies, self.body_of if self.quadratic is None
+                                           else self.body_of[::8], self.mixed and
+                                           self.body_element)
 
     def cell_lame(self):
         """(lambda, mu) per local cell (several bodies), or None (the scene's material)."""
@@ -325,7 +356,7 @@ class Discretisation:
                                  [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
                                   if bnd[n]["type"] == "traction"],
                                  body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0],
-                                 self.roles)
+                                 self.roles, self.linear)
             if self.pair is not None:            # the loops' basis: Z^T b (pairs.py)
                 self.pair.transform_load(bg)
             self.to_frame(bg)

@@ -43,7 +43,7 @@ Elements (-element, ELEMENTS):
 """
 import numpy as np
 
-from contact.mesh import HEX_REF, Q2_REF, MeshError, cross3
+from contact.mesh import HEX_REF, Q1_ROLE, Q2_REF, MeshError, cross3
 
 _G = 1.0 / np.sqrt(3.0)
 _GP3 = np.array([[a, b, c] for a in (-_G, _G) for b in (-_G, _G) for c in (-_G, _G)])
@@ -58,6 +58,14 @@ ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
                   "vertices: the same accuracy with far fewer unknowns",
             "q2p1": "q2 with the volumetric strain projected on a linear pressure per element "
                     "(Q2-P1disc u-p condensed): no volumetric locking, inf-sup stable"}
+
+#: q1 on a q2 mesh (a q1 body beside q2 bodies, fem/discretisation.py): its elements are
+#: the q2 elements' 27 nodes, each 8 trilinear cells (the node mesh's, the eighths o = 4 ox
+#: + 2 oy + oz of hierarchy.QuadraticCells), whose matrices and weights are summed on them.
+#: OCTANT_NODES[o]: the 8 nodes (Q2_REF order) of eighth o, in HEX_REF order
+OCTANT_NODES = (9 * (np.arange(8)[:, None] // 4) + 3 * ((np.arange(8)[:, None] // 2) % 2)
+                + np.arange(8)[:, None] % 2 + ((HEX_REF + 1) // 2).astype(int) @ [9, 3, 1])
+_OCTANT_DOFS = (3 * OCTANT_NODES[:, :, None] + np.arange(3)).reshape(8, 24)
 
 #: cells per chunk when computing element matrices (bounds the temporaries: the element
 #: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
@@ -174,7 +182,13 @@ _SHAPE_HASH = np.random.default_rng(20261127).integers(1, 1 << 62, 81, dtype=np.
 def element_stiffness_shapes(X, lam, mu, element="q1"):
     """(K, inverse): the element matrices of the distinct cell shapes among X and each
     cell's shape (element_stiffness is K[inverse]); inverse None: one K per cell (fewer
-    than two cells per shape)."""
+    than two cells per shape). q1 on 27 nodes: the sum of its eighths' (OCTANT_NODES)."""
+    if element == "q1" and X.shape[1] == 27:
+        K8 = element_stiffness(octants(X), lam, mu, "q1").reshape(X.shape[0], 8, 24, 24)
+        K = np.zeros((X.shape[0], 81, 81))
+        for o, d in enumerate(_OCTANT_DOFS):
+            K[:, d[:, None], d[None, :]] += K8[:, o]
+        return K, None
     if X.shape[0] > 1:
         rel = X - X[:, :1, :]
         scale = np.abs(rel).max()
@@ -340,8 +354,21 @@ def projected_divergence(X, dNdx, wdet, m, with_mass=False):
     return (Dq, Mh) if with_mass else Dq
 
 
-def element_volume_weights(X):
-    """int_e N_a dx for cells X (c, a, 3) of 8 or 27 nodes: (c, a)."""
+def octants(X):
+    """The eighths of 27-node cells X (c, 27, 3) as trilinear cells (8 c, 8, 3), cell by
+    cell (OCTANT_NODES)."""
+    return X[:, OCTANT_NODES].reshape(-1, 8, 3)
+
+
+def element_volume_weights(X, element=None):
+    """int_e N_a dx for cells X (c, a, 3) of 8 or 27 nodes: (c, a); element "q1" with 27
+    nodes: the sums of its eighths' (OCTANT_NODES)."""
+    if element == "q1" and X.shape[1] == 27:
+        w8 = element_volume_weights(octants(X)).reshape(X.shape[0], 8, 8)
+        w = np.zeros((X.shape[0], 27))
+        for o, nodes in enumerate(OCTANT_NODES):
+            w[:, nodes] += w8[:, o]
+        return w
     _, wdet = geometry(X)
     return np.einsum("ga,cg->ca", _RULES[X.shape[1]][0], wdet)
 
@@ -425,11 +452,16 @@ def _q2_face_jacobians(faces, coords, roles):
 
 def nodal_face_weights(faces, coords, roles=None):
     """Per local vertex: sum over the given faces of int N_a ds (nv,). roles: per local
-    vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals),
-    None for q1 and bbar."""
+    vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals;
+    a q1 body's vertices Q1_ROLE: its faces are q1's), None for q1 and bbar."""
     w = np.zeros(coords.shape[0])
     if faces.shape[0]:
-        fw = (face_weights(coords[faces]) if roles is None else _Q2_FACE_SHARE[
-            roles[faces]] * _q2_face_jacobians(faces, coords, roles[faces]))
+        r = None if roles is None else roles[faces]
+        q1 = np.ones(faces.shape[0], bool) if r is None else np.all(r == Q1_ROLE, axis=1)
+        fw = np.zeros(faces.shape)
+        fw[q1] = face_weights(coords[faces[q1]])
+        if not q1.all():
+            r = r[~q1]
+            fw[~q1] = _Q2_FACE_SHARE[r] * _q2_face_jacobians(faces[~q1], coords, r)
         np.add.at(w, faces.ravel(), fw.ravel())
     return w

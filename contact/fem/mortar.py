@@ -53,7 +53,9 @@ functions N_j, N^m_l the biquadratic ones; D_e and M_e by 4x4 Gauss points (N_j 
 of degree 5 per direction on a flat face with bilinear geometry), the triangle rule of
 5 x 5 points (Phi_j N^m_l of degree 8 on parallelograms: exact), 8 x 8 where the edge and
 centre nodes are off the corners' midpoints (graded: the inverse maps are not
-polynomial). The q1 faces' numbers are those of before, bitwise.
+polynomial). The q1 faces' numbers are those of before, bitwise. A q1 body beside a
+q2 body (fem/element.py): one side of 4-node faces, the other of 9-node ones, each mapped
+and evaluated as its own (Phi_j N^m_l of degree 6 at most on parallelograms: 5 x 5 points).
 
 On a slave face the master covers only in part, Phi_j is integrated over the covered
 part: its row sums differ from D_j there and may be negative (the dual functions are).
@@ -291,14 +293,12 @@ def triangle_rule(n):
 
 def _segments(Xs, As, planes, Xm, lam, wq):
     """Mortar integrals of the face pairs (slave Xs (p, n, 3) with dual coefficients As
-    (p, n, n) and planes (_planes), master Xm (p, n, 3); n = 4 or 9: clipped as their
-    corners' quadrilaterals, mapped by all n nodes): per clip triangle, its pair (t,), the
-    local M (t, n, n) and int N_j (t, n) over it (module docstring, steps 1-5)."""
+    (p, n, n) and planes (_planes), master Xm (p, m, 3); n, m = 4 or 9 (a q1 or a q2
+    body's faces): clipped as their corners' quadrilaterals, mapped by all their nodes):
+    per clip triangle, its pair (t,), the local M (t, n, m) and int N_j (t, n) over it
+    (module docstring, steps 1-5)."""
     x0, R, S = planes
-    n = Xs.shape[1]
-    Xs9, Xm9 = Xs, Xm
-    Xs, Xm = (Xs, Xm) if n == 4 else (Xs[:, :4], Xm[:, :4])
-    Pm = np.einsum("pai,pki->pak", Xm - x0[:, None], R[:, :2])      # (p, 4, 2)
+    Pm = np.einsum("pai,pki->pak", Xm[:, :4] - x0[:, None], R[:, :2])      # (p, 4, 2)
     area_s = 0.5 * _cross2(S[:, 2] - S[:, 0], S[:, 3] - S[:, 1])
     poly, k = _clip(S, Pm[:, ::-1])
     k = np.where(np.all(_turns(Pm[:, ::-1]) > 0.0, axis=1), k, 0)  # facing, not folded
@@ -319,11 +319,13 @@ def _segments(Xs, As, planes, Xm, lam, wq):
     xi_m = _inverse_bilinear(Pm[pair], p)
     Ns, dNs = shape(xi_s)
     Nm, _ = shape(xi_m)
-    if n == 9:                # the 9-node maps' inverses, from the corners' bilinear ones
-        S9, P9 = (np.einsum("pai,pki->pak", X - x0[:, None], R[:, :2]) for X in (Xs9, Xm9))
-        xi_s = inverse_map9(S9[pair], p, xi_s)
-        xi_m = inverse_map9(P9[pair], p, xi_m)
-        Ns, Nm, dNs, Xs = shape9(xi_s), shape9(xi_m), grad9(xi_s), Xs9
+    # 9-node faces: the 9-node maps' inverses, from the corners' bilinear ones
+    plane = lambda X: np.einsum("pai,pki->pak", X - x0[:, None], R[:, :2])   # noqa: E731
+    if Xs.shape[1] == 9:
+        xi_s = inverse_map9(plane(Xs)[pair], p, xi_s)
+        Ns, dNs = shape9(xi_s), grad9(xi_s)
+    if Xm.shape[1] == 9:
+        Nm = shape9(inverse_map9(plane(Xm)[pair], p, xi_m))
     dx = np.matmul(Xs[pair].transpose(0, 2, 1)[:, None], dNs)      # (t, g, 3, 2)
     c = np.cross(dx[..., 0], dx[..., 1])
     w = w * np.linalg.norm(c, axis=-1) / (c * R[pair, None, 2]).sum(axis=-1)
@@ -353,9 +355,9 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
                     chunk=CHUNK):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
-    about their body's outward normal (module docstring); or both of 9-node faces (nf, 9)
-    (the q2 element's, fem/mortar_q2.py: corners first; clipped as their corners'
-    quadrilaterals, mapped by their 9 nodes).
+    about their body's outward normal (module docstring); either or both of 9-node faces
+    (nf, 9) (the q2 element's, fem/mortar_q2.py: corners first; clipped as their corners'
+    quadrilaterals, mapped by their 9 nodes; a q1 body's faces beside a q2 body's).
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
     with `inflate`. points: the triangle rule's points per direction (triangle_rule; None:
@@ -368,17 +370,17 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
     xs, xm = np.asarray(xs, dtype=float), np.asarray(xm, dtype=float)
     fs, fm = np.asarray(fs, dtype=np.int64), np.asarray(fm, dtype=np.int64)
     ns, nm = xs.shape[0], xm.shape[0]
-    if fs.shape[1] != fm.shape[1] or fs.shape[1] not in POINTS:
-        raise ValueError(f"the slave and master faces must both have 4 or 9 nodes, got "
+    if fs.shape[1] not in POINTS or fm.shape[1] not in POINTS:
+        raise ValueError(f"the slave and master faces must have 4 or 9 nodes each, got "
                          f"{fs.shape[1]} and {fm.shape[1]}")
     if pairs is None:
         pairs = candidate_pairs(xs, fs, xm, fm, inflate)
     planes = _planes(xs[fs[:, :4]])
     A, De = dual_coefficients(xs[fs])
     if points is None:
-        points = POINTS[fs.shape[1]]
-        if fs.shape[1] == 9 and max(midpoint_deviation(xs[fs]),
-                                    midpoint_deviation(xm[fm])) > 1e-12:
+        points = POINTS[max(fs.shape[1], fm.shape[1])]
+        if max(midpoint_deviation(x[f]) if f.shape[1] == 9 else 0.0
+               for x, f in ((xs, fs), (xm, fm))) > 1e-12:
             points = POINTS_MAPPED
     lam, wq = triangle_rule(points)
     rows, cols, vals = [], [], []

@@ -65,12 +65,14 @@ on the partition), and each assembles its own rows of Z.
 from collections import namedtuple
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact.fem import pairs_crosspoints as crosspoints
 from contact.fem.mortar import mortar_matrices
 from contact.fem.mortar_q2 import edge_bends, nine_node_faces
 from contact.fem.pairs_crosspoints import PairError  # noqa: F401  (pairs.PairError)
+from contact.mesh import Q1_ROLE
 
 #: a slave node whose mortar row sum is below this fraction of D_j is left out of the pair
 #: (a sliver of master over it: the dual basis's row there is ill-conditioned)
@@ -93,13 +95,19 @@ def _gathered(comm, gidx, coords, faces, k=4):
 
 def _nine_node(comm, surfaces, roles):
     """The q2 element's surfaces: each one's slave and master as 9-node faces (fem/mortar_q2.py,
-    from the refined quadrilaterals and the vertices' roles); PairError on every rank where
-    one rank's faces are not whole element faces."""
+    from the refined quadrilaterals and the vertices' roles), but a q1 body's (its vertices'
+    role Q1_ROLE on every rank: a q1 body beside q2 bodies) as they are; PairError on every
+    rank where one rank's faces are not whole element faces."""
+    mpi = comm.tompi4py()
+
+    def faces(quads):
+        q2 = mpi.allreduce(bool(np.any(roles[np.asarray(quads, dtype=np.int64)] != Q1_ROLE)),
+                           op=MPI.LOR)
+        return nine_node_faces(quads, roles) if q2 else quads
     out, err = [], None
     for s in surfaces:
         try:
-            out.append(s._replace(slave=nine_node_faces(s.slave, roles),
-                                  master=nine_node_faces(s.master, roles)))
+            out.append(s._replace(slave=faces(s.slave), master=faces(s.master)))
         except ValueError as e:
             err = err or f"contact pair {s.name!r}: {e}"
     errs = [e for e in comm.tompi4py().allgather(err) if e]
@@ -202,11 +210,11 @@ class ContactPair:
         face nodes `sid`, which the master covers `ok`, their gaps, E's entries (srow,
         mcol, v: global vertex numbers, P_jl), E's rows and columns, the master face
         nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
-        k = s.slave.shape[1]
-        xs, fs, sid = _gathered(comm, gidx, coords, s.slave, k)
-        xm, fm, mid = _gathered(comm, gidx, coords, s.master, k)
-        if k == 9:
-            (o1, m1), (o2, m2) = (edge_bends(X, s.axis) for X in (xs[fs], xm[fm]))
+        xs, fs, sid = _gathered(comm, gidx, coords, s.slave, s.slave.shape[1])
+        xm, fm, mid = _gathered(comm, gidx, coords, s.master, s.master.shape[1])
+        if 9 in (fs.shape[1], fm.shape[1]):     # (each side 4 or 9 nodes: q1 or q2 bodies)
+            (o1, m1), (o2, m2) = (edge_bends(X, s.axis) if X.shape[1] == 9 else (0.0, True)
+                                  for X in (xs[fs], xm[fm]))
             if max(o1, o2) > STRAIGHT_TOL or not (m1 and m2):
                 raise PairError(f"contact pair {s.name!r}: q2 needs faces whose edges, seen "
                                 f"along the pair's normal, are straight (an edge node off "

@@ -63,7 +63,9 @@ def _summary(problem, time_total):
         "solver_mode": problem.solver_mode,
         "partitioner": problem.partitioner,
         "mesh": problem.hierarchy.describe(),        # hierarchy.py: how it was built
-        "element": problem.element,                  # fem.ELEMENTS
+        "element": problem.element,                  # fem.ELEMENTS (q1 and q2 bodies: q2)
+        "body_elements": None if problem.disc.body_element is None else
+        dict(zip(problem.disc.bodies, problem.disc.body_element)),
         "mesh_levels": [lv.nd for lv in problem.hierarchy.levels],
         "dofs": problem.n_dofs,
         "nonzeros": int(problem.A.getInfo()["nz_used"]),
@@ -154,7 +156,10 @@ def print_summary(comm, s, outdir=None):
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
              f"{s['converged']}" + _roundoff_note(s),
-             f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}"]
+             f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}" + (
+                 " (bodies: " + ", ".join(f"{b} {e}" for b, e in s["body_elements"].items())
+                 + "; a q1 body's cells are the q2 nodes' mesh)"
+                 if len(set((s.get("body_elements") or {}).values())) > 1 else "")]
     est = s.get("error_estimate")
     if est is not None:
         nds = [int(n) for n in next(iter(est.values()))["levels"]] if est else []

@@ -165,10 +165,12 @@ def cell_bodies(dm):
     return out
 
 
-def material_groups(bodies, body_of):
+def material_groups(bodies, body_of, elements=None):
     """[(cells, young, poisson)] per body: the local cells of each (body_of: cell_bodies'),
-    for fem.assemble_stiffness's groups."""
-    return [(np.flatnonzero(body_of == i), b["material"]["young"], b["material"]["poisson"])
+    for fem.assemble_stiffness's groups; elements: each body's element, added to its group
+    (bodies of q1 and q2: fem/discretisation.py), or None."""
+    return [(np.flatnonzero(body_of == i), b["material"]["young"], b["material"]["poisson"],
+             *([elements[i]] if elements else []))
             for i, b in enumerate(bodies.values())]
 
 

@@ -33,6 +33,9 @@ Q2_REF = np.array([[a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-
 #: a q2 node's role on a face: the number of its zero reference coordinates (0 corner,
 #: 1 edge midpoint, 2 face centre, 3 the cell centre)
 Q2_ROLE = np.count_nonzero(Q2_REF == 0.0, axis=1)
+#: the role of a vertex of a q1 body in a scene whose other bodies are q2 (fem/element.py:
+#: its cells, the node mesh's, are q1 cells; its faces q1 faces)
+Q1_ROLE = 4
 
 
 class MeshError(ValueError):

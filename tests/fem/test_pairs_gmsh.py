@@ -256,7 +256,7 @@ def _bad_geo(path):
     (lambda s, t: s["boundary"]["bottom"].update(plane=None, physical="bottom"),
      "give body: <one of punch>, got body 'base'"),
     (lambda s, t: s["bodies"]["punch"].update(cells=[1, 1, 1]),
-     "body 'punch': a body with a mesh has only mesh and material, not cells"),
+     "body 'punch': a body with a mesh has only mesh, material and element, not cells"),
     (lambda s, t: s["bodies"]["punch"]["mesh"].update(type="file"),
      "body 'punch': a body's mesh of type file is a gmsh .msh"),
     (lambda s, t: s["bodies"]["punch"]["mesh"].update(type="box"), "mesh must be {type"),

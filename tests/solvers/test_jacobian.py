@@ -15,9 +15,10 @@ term dropped, its sign flipped, c / (1 - c) replaced by c): each fails here.
 
 Cases: the paper's beam (F = 0.3; F varying in space), a tilted foundation with a varying
 gap, a uniform gap with a body the foundation alone holds (the closing first step), and the
-friction-held block on the incline, and two bodies (a dual-mortar pair; q1 and q2). On 1
-and 2 ranks.
+friction-held block on the incline, and two bodies (a dual-mortar pair; q1, q2 and a q1
+body on a q2 one). On 1 and 2 ranks.
 """
+import copy
 import os
 
 import numpy as np
@@ -79,6 +80,14 @@ def _two_bodies_q2():
     return scenes.validate(sc)
 
 
+def _two_bodies_mixed():
+    """_two_bodies_q2 with a q1 punch (8 x 8 x 4 cells of the q2 node mesh) on the q2
+    base: a pair of 4-node slave and 9-node master faces (fem/mortar.py)."""
+    sc = copy.deepcopy(_two_bodies_q2())
+    sc["bodies"]["punch"]["element"] = "q1"
+    return scenes.validate(sc)
+
+
 def _three_bodies():
     """Three blocks stacked (two pairs: Z = I + both pairs' E), the top pushed down and
     sideways, F = 0.3."""
@@ -116,6 +125,7 @@ CASES = {
     "incline": _incline,
     "two_bodies": _two_bodies,
     "two_bodies_q2": _two_bodies_q2,
+    "two_bodies_mixed": _two_bodies_mixed,
     "three_bodies": _three_bodies,
     "two_axes": _two_axes,
 }
@@ -185,8 +195,8 @@ def test_newton_step_is_the_linearisation(case, storage):
     e, counts = _errors(case, storage=storage)
     assert counts["slip"] > 0 and counts["stick"] > 0, counts
     assert counts["stick"] + counts["slip"] == counts["active"], counts
-    if case not in ("incline", "two_bodies", "two_bodies_q2", "three_bodies",
-                    "two_axes"):                                        # (all in contact)
+    if case not in ("incline", "two_bodies", "two_bodies_q2", "two_bodies_mixed",
+                    "three_bodies", "two_axes"):                                        # (all in contact)
         assert counts["inactive"] > 0, counts
     floor = 1e-13
     # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor
