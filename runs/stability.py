@@ -502,6 +502,11 @@ def cases_bodies():
                   f"F = 0.3, Nd = 2", scene + nd(2) + ["-scene_bodies_punch_cells_0", c,
                                                       "-scene_bodies_punch_cells_1", c])
              for c in ("2", "4", "13", "25")]
+    mixed = ["-scene", os.path.join(SCENES, "punch_on_plate_mixed.yaml")]
+    rows += [Case(f"bodies-punch-{p}-plate-{q}-F{f}-nd{n}", f"a {p} punch on a {q} plate, "
+                  f"F = {f}, Nd = {n}", mixed + nd(n) + ["-friction", f, "-element", q,
+                                                        "-scene_bodies_punch_element", p])
+             for p, q in (("q1", "q2"), ("q2", "q1")) for f in ("0.3", "1") for n in (1, 2)]
     return rows
 
 
@@ -754,7 +759,8 @@ GROUPS = {
                "default mode: F = 0 to 1 at Nd = 1, 2, 4; the punch lifted 1e-5 and 1e-4 off "
                "the plate; punch stiffness 1e-3 to 1e3 times the plate's (the stiff ones also "
                "with the plate's top as the slave side); punch meshes of 2 to 25 cells a side "
-               "on the plate's 10.", cases_bodies),
+               "on the plate's 10; a q1 punch on a q2 plate and the reverse "
+               "(punch_on_plate_mixed.yaml), F = 0.3 and 1, Nd = 1, 2.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),

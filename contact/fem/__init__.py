@@ -1,7 +1,8 @@
 """The finite-element discretisation: the elements (element.py), global matrices and
-vectors (assembly.py), the contact frame and the contact set, the discrete problem of a
-scene (discretisation.py) and its admissibility check. `contact.fem` names the elements'
-and the assembly's functions directly (as DOLFINx's `dolfinx.fem` does)."""
+vectors (assembly.py), rigid-body motions (rigid.py), the contact frame and the contact
+set, the discrete problem of a scene (discretisation.py) and its admissibility check.
+`contact.fem` names the elements' and the assembly's functions directly (as DOLFINx's
+`dolfinx.fem` does)."""
 from contact.fem.element import (ELEMENTS, CHUNK, chunk, lame, q2_shape,
                                  NODES, QUADRATIC, PRESSURES, geometry, element_stiffness,
                                  element_stiffness_shapes, pressure_basis,
@@ -10,10 +11,10 @@ from contact.fem.element import (ELEMENTS, CHUNK, chunk, lame, q2_shape,
 from contact.fem.assembly import (PATTERN_CHUNK, create_matrix, assemble_stiffness,
                                   assemble_diagonal, assemble_divergence, local_to_global,
                                   load_vector, global_coordinates, dirichlet_rows,
-                                  dirichlet_values, face_normals, RIGID_MODES, rigid_modes,
-                                  free_rigid_modes, tangential_modes, free_translations,
-                                  load_lifts_off, eliminate_dirichlet, configure_elasticity,
-                                  is_blocked, set_spd)
+                                  dirichlet_values, face_normals, eliminate_dirichlet,
+                                  configure_elasticity, is_blocked, set_spd)
+from contact.fem.rigid import (RIGID_MODES, rigid_modes, free_rigid_modes, tangential_modes,
+                               free_translations, load_lifts_off)
 
 __all__ = ["ELEMENTS", "CHUNK", "chunk", "lame", "q2_shape",
            "NODES", "QUADRATIC", "PRESSURES", "geometry", "element_stiffness",

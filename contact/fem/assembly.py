@@ -1,16 +1,15 @@
 """Global matrices and vectors of the elements (contact/fem/element.py) on a DMPlex:
-preallocation, stiffness assembly, loads, Dirichlet rows and their elimination, rigid
-modes and the elasticity solver's near null space."""
+preallocation, stiffness assembly, loads, Dirichlet rows and their elimination, and the
+elasticity solver's near null space (the rigid modes' checks: rigid.py)."""
 from itertools import chain
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import options
 from contact.fem import stencil
-from contact.fem.element import (chunk, element_stiffness, element_volume_weights, geometry,
-                                  lame, nodal_face_weights, projected_divergence)
+from contact.fem.element import (OCTANT_NODES, chunk, element_stiffness, element_volume_weights,
+                                  geometry, lame, nodal_face_weights, projected_divergence)
 
 #: rows of the matrix pattern counted at a time (create_matrix): ~64 x this many pairs
 PATTERN_CHUNK = 1 << 16
@@ -174,26 +173,26 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
         A.setLGMap(lg, lg)
     else:
         lgb = np.asarray(lg.getBlockIndices(), dtype=np.int64)
-        A = create_matrix(dm, conn, blocked=True,   # AIJ types: assembled as BAIJ, converted
-                          extra=None if pair is None else pair.pattern(lgb[conn]))
+        parts = _groups(conn, lam, mu, element, groups)
+        pattern = _pattern(conn, parts)
+        A = create_matrix(dm, pattern, blocked=True,   # AIJ types: assembled as BAIJ, converted
+                          extra=None if pair is None else pair.pattern(lgb[pattern]))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         idx_type = PETSc.IntType
         _EV_ASSEMBLE.begin()
-        turned = []                             # a pair's cells at its slave nodes
-        for cells, lam_g, mu_g, el in ([(conn, lam, mu, element)] if groups is None else
-                                       [(conn[g[0]], *lame(*g[1:3]), g[3] if len(g) > 3
-                                         else element) for g in groups]):
+        turned = {}                             # a pair's cells at its slave nodes, by width
+        for cells, lam_g, mu_g, el in parts:
             for c, Ke in _element_matrices(cells, coords, lam_g, mu_g, el, frame):
                 if pair is not None:
                     t = pair.turns(lgb[c])
-                    turned.append((lgb[c[t]], Ke[t]))
+                    turned.setdefault(c.shape[1], []).append((lgb[c[t]], Ke[t]))
                     c, Ke = c[~t], Ke[~t]
                 if c.shape[0]:
                     A.setValuesBlockedLocalRCV(c.astype(idx_type), c.astype(idx_type),
                                                Ke.reshape(c.shape[0], -1),
                                                addv=PETSc.InsertMode.ADD_VALUES)
-        if pair is not None and turned:
-            pair.add_turned(A, *(np.concatenate(x) for x in zip(*turned)))
+        for t in turned.values():
+            pair.add_turned(A, *(np.concatenate(x) for x in zip(*t)))
         A.assemble()
         if kind is not None:
             _to_aij(A)
@@ -202,6 +201,27 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     _EV_ASSEMBLE.end()
     return A
+
+
+def _groups(conn, lam, mu, element, groups):
+    """[(cells, lambda, mu, element)] to assemble: conn's, or a group's (assemble_stiffness);
+    q1 on a q2 mesh's elements (27 nodes: fem/element.py) as their eighths, each a q1 cell
+    (OCTANT_NODES), so that A has q1's pattern there."""
+    out = [(conn, lam, mu, element)] if groups is None else [
+        (conn[g[0]], *lame(*g[1:3]), g[3] if len(g) > 3 else element) for g in groups]
+    return [(c[:, OCTANT_NODES].reshape(-1, 8), la, m, e) if e == "q1" and c.shape[1] == 27
+            else (c, la, m, e) for c, la, m, e in out]
+
+
+def _pattern(conn, parts):
+    """The cells whose node couplings A holds (create_matrix): conn, or with q1 cells beside
+    q2 elements (_groups) every part's cells, each padded to conn's width with its last
+    node (which adds no coupling)."""
+    k = conn.shape[1]
+    if all(c.shape[1] == k for c, *_ in parts):
+        return conn
+    return np.concatenate([np.pad(c, ((0, 0), (0, k - c.shape[1])), mode="edge")
+                           for c, *_ in parts])
 
 
 def _to_aij(A):
@@ -362,100 +382,6 @@ def face_normals(faces, coords):
     X = coords[faces]
     n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-
-
-RIGID_MODES = ("translation x", "translation y", "translation z",
-               "rotation about x", "rotation about y", "rotation about z")
-
-
-def _rigid_frame(comm, xyz):
-    """Centre x0 and size h of the body, for rigid modes of unit scale."""
-    n = comm.allreduce(xyz.shape[0])
-    x0 = comm.allreduce(xyz.sum(axis=0)) / max(n, 1)
-    lo = xyz.min(axis=0) if xyz.size else np.full(3, np.inf)
-    hi = xyz.max(axis=0) if xyz.size else np.full(3, -np.inf)
-    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
-    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
-    return x0, max(float(np.max(hi - lo)), 1e-300)
-
-
-def rigid_modes(xyz, x0, h):
-    """(n, 3, 6): the six rigid motions e_k and e_k x (X - x0) / h at the points xyz."""
-    d = (xyz - x0) / h
-    M = np.zeros((xyz.shape[0], 3, 6))
-    M[:, :, :3] = np.eye(3)
-    M[:, :, 3:] = np.stack([np.cross(np.eye(3)[k], d) for k in range(3)], axis=2)
-    return M
-
-
-def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.0)):
-    """Rigid-body motions not fixed by the dofs `rows` (global, owned, x, y, z) and, if
-    given, by the normal displacement u . n (n = `normal`, or (m, 3): each point's) at
-    `normal_points` (owned contact nodes, (m, 3)).
-
-    Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
-    6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
-    Q, frame): the free modes named by their largest components, Q (6, k) a basis of them,
-    and (x0, h) of `rigid_modes`.
-    """
-    comm = coordinates.getComm().tompi4py()
-    xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
-    x0, h = _rigid_frame(comm, xyz)
-    loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
-    R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
-    if normal_points is not None:                  # (normal: one, or one per point)
-        n = np.broadcast_to(np.asarray(normal, dtype=float), np.shape(normal_points))
-        R = np.vstack([R, np.einsum("pcm,pc->pm", rigid_modes(normal_points, x0, h), n)])
-    lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
-    Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
-    names = set()
-    for q in np.abs(Q.T):
-        names |= {RIGID_MODES[j] for j in np.flatnonzero(q > 0.5 * q.max())}
-    return sorted(names, key=RIGID_MODES.index), Q, (x0, h)
-
-
-def tangential_modes(Q, normal, tol=1e-8):
-    """True when every rigid motion in span Q (6, k) is tangential to the plane of unit
-    normal n: translations along the plane and rotations about n (no normal
-    displacement anywhere on the plane)."""
-    n = np.asarray(normal, dtype=float)
-    t, w = Q[:3], Q[3:]
-    return bool(np.all(np.abs(n @ t) <= tol) and
-                np.all(np.linalg.norm(w - np.outer(n, n @ w), axis=0) <= tol))
-
-
-def free_translations(Q, tol=1e-8):
-    """(3, m): an orthonormal basis of the pure translations in span Q (6, k)."""
-    if Q.shape[1] == 0:
-        return np.zeros((3, 0))
-    _, s, Vt = np.linalg.svd(Q[3:])
-    C = Vt[np.count_nonzero(s > tol):].T                  # combinations without rotation
-    if C.shape[1] == 0:
-        return np.zeros((3, 0))
-    U, s, _ = np.linalg.svd(Q[:3] @ C, full_matrices=False)
-    return U[:, s > tol]
-
-
-def load_lifts_off(coordinates, b, Q, frame, contact_points, normal=(0.0, 0.0, 1.0)):
-    """True when the only rigid motion the dirichlet parts leave free (Q of one column,
-    held by the contact alone) can move the body away from the foundation (u . n >= 0 at
-    every contact node) and the load b (x, y, z) does positive work on it: no
-    equilibrium."""
-    if Q.shape[1] != 1:
-        return False            # several free motions: an LP we do not attempt
-    comm = coordinates.getComm().tompi4py()
-    xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
-    uz = np.einsum("pcm,c->pm", rigid_modes(contact_points, *frame),
-                   np.asarray(normal, dtype=float)) @ Q[:, 0]
-    lo = comm.allreduce(uz.min(initial=np.inf), op=MPI.MIN)
-    hi = comm.allreduce(uz.max(initial=-np.inf), op=MPI.MAX)
-    scale = max(abs(lo), abs(hi), 1e-300)
-    if lo < -1e-9 * scale and hi > 1e-9 * scale:
-        return False            # the motion presses part of the face: contact holds it
-    sign = 1.0 if hi > 1e-9 * scale else -1.0      # orientation that lifts the body
-    m = rigid_modes(xyz, *frame) @ (sign * Q[:, 0])
-    work = comm.allreduce(float(np.sum(b.getArray(readonly=True).reshape(-1, 3) * m)))
-    return work > 0.0
 
 
 def eliminate_dirichlet(A, b, rows):

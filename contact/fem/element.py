@@ -61,11 +61,11 @@ ELEMENTS = {"q1": "trilinear hexahedron, 2x2x2 Gauss (the paper's)",
 
 #: q1 on a q2 mesh (a q1 body beside q2 bodies, fem/discretisation.py): its elements are
 #: the q2 elements' 27 nodes, each 8 trilinear cells (the node mesh's, the eighths o = 4 ox
-#: + 2 oy + oz of hierarchy.QuadraticCells), whose matrices and weights are summed on them.
-#: OCTANT_NODES[o]: the 8 nodes (Q2_REF order) of eighth o, in HEX_REF order
+#: + 2 oy + oz of hierarchy.QuadraticCells), assembled as such (assembly.py) and their
+#: weights summed on the 27 nodes. OCTANT_NODES[o]: the 8 nodes (Q2_REF order) of eighth
+#: o, in HEX_REF order
 OCTANT_NODES = (9 * (np.arange(8)[:, None] // 4) + 3 * ((np.arange(8)[:, None] // 2) % 2)
                 + np.arange(8)[:, None] % 2 + ((HEX_REF + 1) // 2).astype(int) @ [9, 3, 1])
-_OCTANT_DOFS = (3 * OCTANT_NODES[:, :, None] + np.arange(3)).reshape(8, 24)
 
 #: cells per chunk when computing element matrices (bounds the temporaries: the element
 #: matrices, 4.6 kB per cell, and the einsum products, ~11 kB per cell at most)
@@ -182,13 +182,7 @@ _SHAPE_HASH = np.random.default_rng(20261127).integers(1, 1 << 62, 81, dtype=np.
 def element_stiffness_shapes(X, lam, mu, element="q1"):
     """(K, inverse): the element matrices of the distinct cell shapes among X and each
     cell's shape (element_stiffness is K[inverse]); inverse None: one K per cell (fewer
-    than two cells per shape). q1 on 27 nodes: the sum of its eighths' (OCTANT_NODES)."""
-    if element == "q1" and X.shape[1] == 27:
-        K8 = element_stiffness(octants(X), lam, mu, "q1").reshape(X.shape[0], 8, 24, 24)
-        K = np.zeros((X.shape[0], 81, 81))
-        for o, d in enumerate(_OCTANT_DOFS):
-            K[:, d[:, None], d[None, :]] += K8[:, o]
-        return K, None
+    than two cells per shape)."""
     if X.shape[0] > 1:
         rel = X - X[:, :1, :]
         scale = np.abs(rel).max()

@@ -2,12 +2,13 @@
 nodes, each element 8 trilinear cells; fem/mortar.py: a pair of a 4-node and a 9-node
 side), checked against closed forms and against runs of one element:
 
-* q1 on 27 nodes is the sum of its 8 trilinear cells' matrices, the cells found here from
-  the nodes' reference places (not from element.OCTANT_NODES), and its energy of a linear
-  field the closed form's;
+* q1 on 27 nodes is 8 trilinear cells, found here from the nodes' reference places (not
+  from element.OCTANT_NODES), their volume weights summed on the nodes, their energy of a
+  linear field the closed form's;
 * the contact patch test on non-matching meshes, a q1 slave on a q2 master and the
-  reverse, F = 0 and 0.3, two materials sliding: u the linear field of each body, the
-  multiplier p at every slave node, the stress -p e_z e_z in every cell, to rounding;
+  reverse, F = 0 and 0.3, two materials sliding, the base on the rigid foundation: u the
+  linear field of each body, the multiplier p at every contact node, the stress -p e_z e_z
+  in every cell, to rounding;
 * against one element: a punch pressed and sheared (F = 0.3: stick and slip), under its
   weight, on a base
   held still (its face does not move, so its element cannot change the punch's answer):
@@ -21,6 +22,7 @@ import copy
 import numpy as np
 import pytest
 from conftest import fields, gather, rel_err, solve, two_blocks
+from test_pairs import P, exact
 from test_pairs_q2 import check_patch, q2_blocks
 
 from contact import scene as scenes
@@ -41,27 +43,22 @@ def _eighths():
 
 
 def test_q1_on_27_nodes_is_its_eighths():
-    """An element of a distorted brick: K = sum over its eighths of the q1 matrices at
-    their nodes' dofs; K u for a rigid translation 0; u.K u of a linear field the closed
-    form 2 W |e| (W the strain energy density); volume weights sum to |e|."""
+    """An element of a distorted brick: its eighths (element.octants, the cells q1 is
+    assembled on: fem/assembly.py) are those found by place, the volume weights on the 27
+    nodes sum to their volume; their energy of a
+    linear field is the closed form's 2 W |e| (W the strain energy density)."""
     rng = np.random.default_rng(3)
     X = (Q2_REF + 1.0) / 2.0 * [1.0, 2.0, 0.5] + 0.04 * rng.standard_normal((27, 3))
+    assert np.array_equal(element.octants(X[None]), X[_eighths()])
+    vol8 = element.geometry(X[_eighths()])[1].sum()
+    assert abs(element.element_volume_weights(X[None], "q1").sum() - vol8) < 1e-13 * vol8
     lam, mu = 1.3, 0.7
-    K = element.element_stiffness(X[None], lam, mu, "q1")[0]
-    ref = np.zeros((81, 81))
-    for nodes in _eighths():
-        Ke = element.element_stiffness(X[nodes][None], lam, mu, "q1")[0]
-        d = (3 * nodes[:, None] + np.arange(3)).ravel()
-        ref[np.ix_(d, d)] += Ke
-    assert np.abs(K - ref).max() < 1e-13 * np.abs(ref).max()
-    assert np.abs(K @ np.tile([1.0, 0.0, 0.0], 27)).max() < 1e-12 * np.abs(K).max()
     G = np.array([[0.1, 0.2, 0.0], [0.0, -0.3, 0.1], [0.05, 0.0, 0.2]])
     eps = (G + G.T) / 2.0
     W = 0.5 * (lam * np.trace(eps) ** 2 + 2.0 * mu * np.sum(eps * eps))
-    vol = sum(element.geometry(X[n][None])[1].sum() for n in _eighths())
-    u = (X @ G.T).ravel()
-    assert abs(u @ K @ u - 2.0 * W * vol) < 1e-12 * W * vol
-    assert abs(element.element_volume_weights(X[None], "q1").sum() - vol) < 1e-13 * vol
+    K = element.element_stiffness(element.octants(X[None]), lam, mu, "q1")
+    u = np.einsum("kai,ji->kaj", X[_eighths()], G).reshape(8, 24)
+    assert abs(np.einsum("ka,kab,kb->", u, K, u) - 2.0 * W * vol8) < 1e-12 * W * vol8
 
 
 def mixed_blocks(slave, friction=0.0, **kw):
@@ -106,6 +103,23 @@ def test_patch_mixed_lower_body_as_slave(comm):
     sc["boundary"]["interface"] = {"type": "contact", "body": "base", "plane": ["z", 0.5],
                                    "master": {"body": "punch"}}
     check_patch(solve(scenes.validate(sc), comm), young=(3.0, 1.0), nodes=49)
+
+
+@pytest.mark.parametrize("base", ["q1", "q2"])
+def test_patch_mixed_on_the_foundation(comm, base):
+    """The base's bottom on the rigid foundation (a contact part beside the pair) instead
+    of held in z: the same fields, p at the punch's 9 x 9 slave nodes and at the base's
+    bottom nodes (7 x 7: its q1 faces' weights, or its q2 faces')."""
+    sc = mixed_blocks("q2" if base == "q1" else "q1")
+    sc["boundary"]["bottom"] = {"type": "contact", "body": "base", "plane": ["z", 0.0]}
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged and pr.disc.body_element == [base, "q2" if base == "q1" else "q1"]
+    xyz, u = gather(pr)[:2]
+    off = np.abs(xyz[:, 2] - 0.5) > 1e-12
+    assert rel_err(u[off], exact(xyz, (1.0, 1.0), 0.3)[off]) < 1e-8
+    lam = pr.cs.local_array(pr.l)
+    assert pr.comm.tompi4py().allreduce(lam.size) == 81 + 49
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
 
 
 def held_base(punch, base, scale):
