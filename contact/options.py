@@ -136,7 +136,7 @@ REGISTRY = [
     Option("help", None, bool, "this list", ""),
     Option("dm_vec_type", None, str, "Vec type of the loops (e.g. cuda; also -vec_type)", "TYPE"),
     Option("dm_mat_type", None, str, "Mat type, of the AIJ family (e.g. aij, aijcusparse; "
-           "also -mat_type). Default: BAIJ for q1 with the multigrid in the newton mode "
+           "also -mat_type). Default: BAIJ for q1 and q2 with the multigrid in the newton mode "
            "(coarse operator rediscretised), else AIJ; aij there: PETSc's Galerkin products",
            "TYPE"),
     Option("vec_type", None, str, "as -dm_vec_type", "TYPE"),

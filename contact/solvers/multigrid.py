@@ -11,17 +11,21 @@ levels keep x, y, z: the coarse operators see the pair through the finest one, a
 correction never moves a clamped dof).
 
 Two ways to the first coarse operator, by the stiffness' Mat type (`blocked`):
-  BAIJ (q1 in the Newton mode, the default; several bodies and a contact pair too, A_c
-      with each body's material): the first coarse level's stiffness A_c is
+  BAIJ (q1 and q2 in the Newton mode, the default; several bodies and a contact pair too,
+      A_c with each body's material): the first coarse level's stiffness A_c is
       assembled on its own mesh (rediscretised) and the fine operator K = A + D (D: the
       Jacobian's changes, in the contact rows only) gives P^T K P = A_c + P^T D P: for the
       nested Q1 spaces P^T A P = A_c on the free dofs (P is zero on the clamped columns
       too), so this is the Galerkin operator without a product of the fine matrix, which
-      PETSc (3.18 and later) cannot form for BAIJ. The levels below are Galerkin products
-      (MatPtAP of AIJ). BAIJ stores a 3 x 3 block with one column index: 8.4 B per
-      nonzero against AIJ's 12, and at Nd = 40 on 2 ranks its MatMult takes 12.5 ms
-      against 36 ms and its assembly 0.45 s against 1.9 s (runs/results/scaling.md).
-  AIJ (-mat_type aij, q2, bbar and the mixed split, the paper's loops): PETSc's Galerkin
+      PETSc (3.18 and later) cannot form for BAIJ. q2's first coarse level is q1 on its
+      element mesh, and P the embedding of that q1 space in q2's: P^T A P = A_c again
+      where the quadratures integrate q1's energy exactly (cells with straight edges; on
+      curved gmsh faces A_c is q1's on the corners' cells, close to it). The levels below
+      are Galerkin products (MatPtAP of AIJ). BAIJ stores a 3 x 3 block with one column
+      index: 8.4 B per nonzero against AIJ's 12, and at Nd = 40 on 2 ranks its MatMult
+      takes 12.5 ms against 36 ms and its assembly 0.45 s against 1.9 s
+      (runs/results/scaling.md); q2's product P^T A P, of 125-node rows, is gone too.
+  AIJ (-mat_type aij, bbar and the mixed split, the paper's loops): PETSc's Galerkin
       products at every level (-pc_mg_galerkin both). q2p1's u-block A_g is BAIJ, its
       coarse levels products of an AIJ copy (mixed.Split.coarse_operators).
 
@@ -66,6 +70,11 @@ SOR_SWEEPS = 1
 DEFAULTS = {"pc_mg_galerkin": "both"}
 #: the KSPs whose preconditioner is this multigrid (coulomb.py, elasticity_ksp)
 PREFIXES = ("newton_", "elastic_")
+#: the elements whose stiffness is BAIJ with a rediscretised first coarse operator (blocked):
+#: q1, and q2, whose first coarse level is q1 on its element mesh (the module docstring).
+#: make run's beam (q2 Nd 12, 2 ranks): 8.4 -> 6.2 s, the same answer (AIJ with Galerkin
+#: products before: runs/results/q2-blocked.md)
+BLOCKED = ("q1", "q2")
 #: SUBSET_NONZERO_PATTERN: the correction P^T D P lies in A_c's pattern (with a contact
 #: pair once A_c has taken in its first one's: the slave rows of Z^-1 P reach the master's
 #: coarse nodes, which A_c of two separate bodies does not couple to the slave's)
@@ -78,13 +87,14 @@ GALERKIN = {"matptap_via": "allatonce"}
 
 
 def blocked(scene, level_index, element):
-    """Whether the stiffness of `element` on the hierarchy's level `level_index` is BAIJ, its multigrid's first coarse operator
-    rediscretised (the module docstring): q1 on a mesh hierarchy in the Newton mode, unless
+    """Whether the stiffness of `element` on the hierarchy's level `level_index` is BAIJ,
+    its multigrid's first coarse operator rediscretised (the module docstring): q1 and q2
+    (BLOCKED) on a mesh hierarchy in the Newton mode, unless
     the command line asks for a Mat type (-mat_type aij: AIJ and PETSc's Galerkin
     products), GPU Vecs, another preconditioner (-newton_pc_type gamg, ...) or its own
     Galerkin setting (-newton_pc_mg_galerkin)."""
     opts = PETSc.Options()
-    if (level_index == 0 or element != "q1" or options.solver_mode(scene) != "newton"
+    if (level_index == 0 or element not in BLOCKED or options.solver_mode(scene) != "newton"
             or options.requested_type("mat_type") is not None or gpu_vecs()):
         return False
     for prefix in PREFIXES:
