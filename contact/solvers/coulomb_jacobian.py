@@ -123,7 +123,8 @@ class CoulombJacobian:
             return
         self.separate = separate
         self.K = self.A.duplicate(copy=True)
-        self.K.setOption(PETSc.Mat.Option.SPD, False)            # (A's flags, copied)
+        if not fem.is_blocked(self.K):          # (A's flags, copied; BAIJ has no SPD:
+            self.K.setOption(PETSc.Mat.Option.SPD, False)        # fem.set_spd)
         self.K.setOption(PETSc.Mat.Option.SYMMETRIC, False)
         self.mats = [self.K]
         if self.D is None:
