@@ -42,7 +42,7 @@ from petsc4py import PETSc
 from contact import options, scene_grading
 from contact.analysis import estimate, goal as goals
 from contact.fem import QUADRATIC
-from contact.fem.discretisation import element_of
+from contact.fem.discretisation import body_elements, element_of
 from contact.mesh import bodies, grading
 from contact.problem import ContactProblem
 
@@ -70,9 +70,10 @@ def axes(sc):
         if how == "auto" and not auto:
             raise ValueError("mesh.grading auto needs a box mesh or box bodies, not only "
                              "gmsh bodies")
-        if auto and mesh.get("element", "q1") != "q1":
+        q2 = sorted({e for e in body_elements(sc) if e != "q1"}) if auto else []
+        if q2:                           # (the scene's element, or a body's own)
             raise ValueError(f"mesh.grading auto on bodies is for q1 (for now), not "
-                             f"{mesh['element']}")
+                             f"{q2[0]}")
     else:                   # a box, or a gmsh or file mesh (a box's lattice: hierarchy.py)
         auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
     if auto:

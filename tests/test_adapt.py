@@ -13,7 +13,7 @@ import yaml
 from conftest import ROOT, cli, gmsh_beam, paper_scene, skip_in_parallel, solve
 from petsc4py import PETSc
 
-from contact import scene as scenes
+from contact import adapt, options, scene as scenes
 from contact.analysis import estimate
 from contact.mesh import grading
 from contact.mesh.hierarchy import MeshHierarchy
@@ -278,6 +278,21 @@ def test_auto_grading_of_a_body(tmp_path):
     assert set(g) == {f"{b}.{a}" for b in ("ball", "base") for a in "xyz"}
     h = np.diff(np.array(g["base.z"]["points"]))       # the base: finest at its top
     assert h[-(h.size // 4):].mean() < h[: h.size // 4].mean(), h
+
+
+@pytest.mark.parametrize("where", ["mesh", "body"])
+def test_auto_grading_of_bodies_is_for_q1(where):
+    """q2 bodies are refused by -mesh_grading auto, by the scene's element or by a body's
+    own (bodies may mix q1 and q2: fem/discretisation.py), before any solve."""
+    sc = copy.deepcopy(BALL)
+    if where == "mesh":
+        sc["mesh"]["element"] = "q2"
+    else:
+        sc["bodies"]["ball"]["element"] = "q2"
+    sc = scenes.validate(sc)
+    with options.inserted({"mesh_grading": "auto"}):
+        with pytest.raises(ValueError, match=r"auto on bodies is for q1 \(for now\), not q2"):
+            adapt.axes(sc)
 
 
 @skip_in_parallel
