@@ -152,8 +152,10 @@ def body_stress(problem, u=None):
     else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
         m = fem.PRESSURES.get(problem.element)
         theta = _projected_theta(coords, ul, q.conn, m) if m else None
+        lin = problem.disc.linear               # a q1 body's cells beside q2 bodies: q1's
+        q1 = np.zeros(nc, bool) if lin is None else lin[np.arange(nc) // 8]
         for o, (rule, _) in enumerate(_OCTANTS):
-            cells = np.flatnonzero(q.octant == o)
+            cells = np.flatnonzero((q.octant == o) & ~q1)
             for a in range(0, cells.size, fem.CHUNK // 8):
                 f = cells[a:a + fem.CHUNK // 8]
                 X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
@@ -161,9 +163,8 @@ def body_stress(problem, u=None):
                     lam, mu = per[0][f], per[1][f, None, None]
                 s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
                                            None if theta is None else theta[f // 8, o])
-        lin = problem.disc.linear               # a q1 body's cells beside q2 bodies: q1's
-        cells = np.flatnonzero(lin[np.arange(nc) // 8]) if lin is not None else []
-        for a in range(0, len(cells), fem.CHUNK):
+        cells = np.flatnonzero(q1)
+        for a in range(0, cells.size, fem.CHUNK):
             f = cells[a:a + fem.CHUNK]
             lam, mu = per[0][f], per[1][f, None, None]
             s[f], vol[f] = cell_stress(coords[conn[f]], ul[conn[f]], lam, mu)

@@ -450,12 +450,14 @@ def nodal_face_weights(faces, coords, roles=None):
     a q1 body's vertices Q1_ROLE: its faces are q1's), None for q1 and bbar."""
     w = np.zeros(coords.shape[0])
     if faces.shape[0]:
-        r = None if roles is None else roles[faces]
-        q1 = np.ones(faces.shape[0], bool) if r is None else np.all(r == Q1_ROLE, axis=1)
-        fw = np.zeros(faces.shape)
-        fw[q1] = face_weights(coords[faces[q1]])
-        if not q1.all():
-            r = r[~q1]
-            fw[~q1] = _Q2_FACE_SHARE[r] * _q2_face_jacobians(faces[~q1], coords, r)
+        if roles is None:
+            fw = face_weights(coords[faces])
+        else:
+            r = roles[faces]
+            q1 = np.all(r == Q1_ROLE, axis=1)
+            fw = np.zeros(faces.shape)
+            fw[q1] = face_weights(coords[faces[q1]])
+            fw[~q1] = _Q2_FACE_SHARE[r[~q1]] * _q2_face_jacobians(faces[~q1], coords,
+                                                                  r[~q1])
         np.add.at(w, faces.ravel(), fw.ravel())
     return w
