@@ -22,7 +22,8 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1 or q2 (a body's `element:`, else mesh.element or -element; auto is q1), slave
+version: q1, q2, bbar or q2p1 (a body's `element:`, else mesh.element or -element; auto is
+q1), slave
 faces a flat side of their body (normal to x, y or z; pairs may face different axes). With
 q2 a pair couples the elements' 9-node faces (biquadratic, isoparametric, their dual basis:
 fem/mortar_q2.py), whose edges must be straight seen along the pair's normal: graded bodies
@@ -30,7 +31,8 @@ and a lower_surface master on a pair along z are; a lower_surface body's side fa
 pair along x or y are refused in one line (use q1). Bodies may mix the two: then every
 body has the q2 nodes (the mesh refined once more), and a q1 body's cells are those of
 that node mesh, 8 to each of its `cells` x nd (the q2 element's nodes, each eighth a q1
-cell: fem/element.py); a pair may couple a q1 and a q2 face (fem/mortar.py).
+cell: fem/element.py); a pair may couple a q1 and a q2 face (fem/mortar.py). bbar is q1's
+and q2p1 q2's, with their own element matrices (a rubber body beside steel ones).
 A contact part may have its own `friction:` (a number or an expression, as
 contact.friction) on its nodes.
 
@@ -64,7 +66,7 @@ from contact import expression, scene_grading
 BODY_KEYS = ("lower", "upper", "cells", "material", "element", "grading", "lower_surface",
              "mesh")
 #: the elements of a scene with several bodies (auto: q1)
-BODY_ELEMENTS = ("auto", "q1", "q2")
+BODY_ELEMENTS = ("auto", "q1", "q2", "bbar", "q2p1")
 
 
 def expand(scene):
@@ -89,9 +91,9 @@ def expand(scene):
             raise SceneError(f"{where} must be a mapping of {', '.join(BODY_KEYS)}, got "
                              f"{shown(b)}")
         if b.get("element", "q1") not in BODY_ELEMENTS[1:]:
-            raise SceneError(f"{where}: element must be q1 or q2 (each body its own; "
-                             f"without it the scene's: -element, mesh.element), got "
-                             f"{shown(b['element'])}")
+            raise SceneError(f"{where}: element must be {', '.join(BODY_ELEMENTS[1:])} (each "
+                             f"body its own; without it the scene's: -element, mesh.element), "
+                             f"got {shown(b['element'])}")
         if "mesh" in b:
             _body_mesh(b, where)
             continue
@@ -116,8 +118,8 @@ def expand(scene):
     mesh.setdefault("nd", 1)
     el = mesh.setdefault("element", "q1")
     if el not in BODY_ELEMENTS:
-        raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
-                         f"got {el!r}")
+        raise SceneError(f"a scene with several bodies has the {', '.join(BODY_ELEMENTS)} "
+                         f"element, got {el!r}")
     mesh["element"] = "q1" if el == "auto" else el
     scene["mesh"] = mesh
     first = next(iter(bodies.values()))["material"]

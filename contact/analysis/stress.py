@@ -83,7 +83,8 @@ def cell_stress(X, U, lam, mu, rule=None, theta=None):
     eps = 0.5 * (H + H.transpose(0, 2, 1))
     sig = 2.0 * mu * eps
     tr = np.trace(eps, axis1=1, axis2=2)
-    vol_part = lam * tr if theta is None else (lam + 2.0 * mu / 3.0) * theta - 2.0 * mu / 3.0 * tr
+    m = mu.reshape(-1) if np.ndim(mu) else mu                      # (a material per cell)
+    vol_part = lam * tr if theta is None else (lam + 2.0 * m / 3.0) * theta - 2.0 * m / 3.0 * tr
     sig[:, [0, 1, 2], [0, 1, 2]] += vol_part[:, None]
     return sig[:, _I, _J], vol
 
@@ -150,19 +151,24 @@ def body_stress(problem, u=None):
                 lam, mu = per[0][a:a + fem.CHUNK], per[1][a:a + fem.CHUNK, None, None]
             s[a:a + fem.CHUNK], vol[a:a + fem.CHUNK] = cell_stress(coords[c], ul[c], lam, mu)
     else:                        # cell 8 p + i: the eighth q.octant[8 p + i] of element p
-        m = fem.PRESSURES.get(problem.element)
+        els, disc = problem.disc.body_element, problem.disc
+        m = fem.PRESSURES.get("q2p1" if els and "q2p1" in els else problem.element)
         theta = _projected_theta(coords, ul, q.conn, m) if m else None
-        lin = problem.disc.linear               # a q1 body's cells beside q2 bodies: q1's
+        # q2p1's pressure: every element's, or a q2p1 body's (several bodies)
+        p1 = np.full(nc, m is not None) if not els else \
+            (np.array(els) == "q2p1")[disc.body_of[::8]][np.arange(nc) // 8]
+        lin = disc.linear                       # a q1 body's cells beside q2 bodies: q1's
         q1 = np.zeros(nc, bool) if lin is None else lin[np.arange(nc) // 8]
         for o, (rule, _) in enumerate(_OCTANTS):
-            cells = np.flatnonzero((q.octant == o) & ~q1)
-            for a in range(0, cells.size, fem.CHUNK // 8):
-                f = cells[a:a + fem.CHUNK // 8]
-                X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
-                if per is not None:
-                    lam, mu = per[0][f], per[1][f, None, None]
-                s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
-                                           None if theta is None else theta[f // 8, o])
+            for pressure in (False, True):
+                cells = np.flatnonzero((q.octant == o) & ~q1 & (p1 == pressure))
+                for a in range(0, cells.size, fem.CHUNK // 8):
+                    f = cells[a:a + fem.CHUNK // 8]
+                    X, U = coords[q.conn[f // 8]], ul[q.conn[f // 8]]
+                    if per is not None:
+                        lam, mu = per[0][f], per[1][f, None, None]
+                    s[f], vol[f] = cell_stress(X, U, lam, mu, rule,
+                                               theta[f // 8, o] if pressure else None)
         cells = np.flatnonzero(q1)
         for a in range(0, cells.size, fem.CHUNK):
             f = cells[a:a + fem.CHUNK]

@@ -11,6 +11,8 @@ from contact.fem import stencil
 from contact.fem.element import (OCTANT_NODES, chunk, element_stiffness, element_volume_weights,
                                   geometry, lame, nodal_face_weights, projected_divergence)
 
+#: the elements of 8 nodes (on a q2 mesh: its elements' eighths, _groups)
+LINEAR = ("q1", "bbar")
 #: rows of the matrix pattern counted at a time (create_matrix): ~64 x this many pairs
 PATTERN_CHUNK = 1 << 16
 _EV_PREALLOC = PETSc.Log.Event("Preallocate A")
@@ -205,11 +207,11 @@ def assemble_stiffness(dm, conn, coords, young, poisson, frame=None, element="q1
 
 def _groups(conn, lam, mu, element, groups):
     """[(cells, lambda, mu, element)] to assemble: conn's, or a group's (assemble_stiffness);
-    q1 on a q2 mesh's elements (27 nodes: fem/element.py) as their eighths, each a q1 cell
-    (OCTANT_NODES), so that A has q1's pattern there."""
+    q1 or bbar on a q2 mesh's elements (27 nodes: fem/element.py) as their eighths, each a
+    q1 cell (OCTANT_NODES), so that A has q1's pattern there."""
     out = [(conn, lam, mu, element)] if groups is None else [
         (conn[g[0]], *lame(*g[1:3]), g[3] if len(g) > 3 else element) for g in groups]
-    return [(c[:, OCTANT_NODES].reshape(-1, 8), la, m, e) if e == "q1" and c.shape[1] == 27
+    return [(c[:, OCTANT_NODES].reshape(-1, 8), la, m, e) if e in LINEAR and c.shape[1] == 27
             else (c, la, m, e) for c, la, m, e in out]
 
 

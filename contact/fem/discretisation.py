@@ -43,12 +43,14 @@ def element_of(scene):
     mesh hierarchy is built for its nodes: problem.py asks here first.) Several bodies:
     q2 where one of them is (body_elements), else q1."""
     els = body_elements(scene)
-    return _element(scene) if els is None else ("q2" if "q2" in els else "q1")
+    return _element(scene) if els is None else (
+        "q2" if any(e in fem.QUADRATIC for e in els) else "q1")
 
 
 def body_elements(scene):
     """Each body's element (a body's own `element:`, else the run's: -element or
-    mesh.element), or None for a scene of one body."""
+    mesh.element), or None for a scene of one body. Each is q1's family (q1, bbar: on the node
+    mesh where q2's is beside, q1_beside_q2) or q2's (q2, q2p1)."""
     if "bodies" not in scene:
         return None
     el = _element(scene)
@@ -65,24 +67,65 @@ def _element(scene):
     if el not in fem.ELEMENTS:
         raise SceneError(f"-element must be auto, {', '.join(fem.ELEMENTS)}, got {el!r}")
     if "bodies" in scene and el not in BODY_ELEMENTS:     # (-element on the command line)
-        raise SceneError(f"a scene with several bodies has the q1 or q2 element (for now), "
-                         f"got {el!r}")
+        raise SceneError(f"a scene with several bodies has the {', '.join(BODY_ELEMENTS)} "
+                         f"element, got {el!r}")
     return el
 
 
 def q1_beside_q2(disc):
     """(body elements, mixed, linear, roles) of Discretisation disc: each body's element
-    (body_elements) and whether they are both; then a q1 body has the q2 elements' 27
-    nodes, an element its 8 cells as q1 cells (fem/element.py): `linear` (ne,) marks its
-    elements, roles its vertices Q1_ROLE (q1 faces) among the q2 roles; else (..., False,
-    None, disc.roles)."""
+    (body_elements) and whether both families are; then a q1 (or bbar) body has the q2
+    elements' 27 nodes, an element its 8 cells as q1 cells (fem/element.py): `linear` (ne,)
+    marks its elements, roles its vertices Q1_ROLE (q1 faces) among the q2 roles; else
+    (..., False, None, disc.roles)."""
     els = body_elements(disc.scene)
-    if els is None or len(set(els)) < 2:
+    if els is None or disc.quadratic is None or all(e in fem.QUADRATIC for e in els):
         return els, False, None, disc.roles
-    linear = (np.array(els) == "q1")[disc.body_of[::8]]  # (element p: cells 8 p .. 8 p + 7)
+    # (element p: cells 8 p .. 8 p + 7)
+    linear = ~np.isin(els, fem.QUADRATIC)[disc.body_of[::8]]
     roles = disc.roles.copy()
     roles[disc.elements[linear].ravel()] = mesh.Q1_ROLE
     return els, True, linear, roles
+
+
+def capped_groups(groups):
+    """groups' (Discretisation._materials) with each body of a condensed pressure (bbar,
+    q2p1) and lambda > RHO_LAMBDA_CAP mu at lambda = RHO_LAMBDA_CAP mu, its mu kept (as
+    (young, poisson)); None where there is none."""
+    nu = RHO_LAMBDA_CAP / (2.0 * (RHO_LAMBDA_CAP + 1.0))         # lambda / mu = the cap
+    out = [(c, 2.0 * (1.0 + nu) * fem.lame(y, p)[1], nu, el)
+           if el in fem.PRESSURES and fem.lame(y, p)[0] > RHO_LAMBDA_CAP * fem.lame(y, p)[1]
+           else (c, y, p, el) for c, y, p, el in groups]
+    return None if all(a[1:] == b[1:] for a, b in zip(out, groups)) else out
+
+
+def contact_diagonal(disc):
+    """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
+    from (coulomb.py) for Discretisation disc, or None for A's own. With bbar and
+    lambda > RHO_LAMBDA_CAP mu (nu > 0.3): that of lambda = RHO_LAMBDA_CAP mu. A's diagonal there is the
+    volumetric stiffness kappa ~ lambda, which the cell-mean constraint of B-bar does
+    not oppose to a node's motion when its neighbours follow: the node's stiffness
+    stays that of shear, mu. With rho ~ lambda the slip test |l_t - rho x_t| sees
+    only rho x_t and the iteration cycles (a block at nu = 0.4999 and F = 0.3:
+    DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap). Several bodies:
+    such bodies' cells at that lambda, the others' as they are (capped_groups), in A's
+    basis (a pair's: the whole A~ assembled again, at set-up)."""
+    mat = disc.scene["material"]
+    lam, mu = fem.lame(mat["young"], mat["poisson"])
+    if disc.bodies is not None:
+        groups = capped_groups(disc.materials())
+        if groups is None:
+            return None
+        A = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
+                                   mat["poisson"], frame=disc.frame, blocked=True,
+                                   groups=groups, pair=disc.pair)
+        d = A.getDiagonal()
+        A.destroy()
+        return d
+    if disc.element not in fem.PRESSURES or lam <= RHO_LAMBDA_CAP * mu:
+        return None
+    return fem.assemble_diagonal(disc.dm, disc.elements, disc.coords, RHO_LAMBDA_CAP * mu,
+                                 mu, disc.frame, disc.element)
 
 
 class Discretisation:
@@ -191,10 +234,10 @@ class Discretisation:
         self.A = fem.assemble_stiffness(dm, self.elements, self.coords, mat["young"],
                                         mat["poisson"], frame=self.frame,
                                         element=self.element, blocked=blocked,
-                                        lattice=self.lattice, groups=self._materials(),
+                                        lattice=self.lattice, groups=self.materials(),
                                         pair=self.pair)   # (A~ = Z^T A Z: pairs.py)
         self._loads()
-        self.contact_diagonal = self._contact_diagonal()
+        self.contact_diagonal = contact_diagonal(self)
         # the rigid-body modes are GAMG's: the multigrid with rediscretised levels (BAIJ)
         # has no use for them (6 Vecs of A's size: 0.05 kB per dof; a pair's 12)
         self.nullspace = fem.configure_elasticity(self.A, self.coordinates, self.frame,
@@ -206,14 +249,13 @@ class Discretisation:
             self.A.setNearNullSpace(self.nullspace)
         self.n_dofs = self.A.getSize()[0]
 
-    def _materials(self):
-        """[(cells, young, poisson[, element: q1 beside q2])] per body, or None (one body)."""
+    def materials(self):
+        """[(cells, young, poisson, element)] per body, or None (one body)."""
         if self.bodies is None:
             return None
         # q2: element p is the parent of the cells 8 p .. 8 p + 7 (hierarchy.QuadraticCells)
         return mesh_bodies.material_groups(self.bodies, self.body_of if self.quadratic is None
-                                           else self.body_of[::8], self.mixed and
-                                           self.body_element)
+                                           else self.body_of[::8], self.body_element)
 
     def cell_lame(self):
         """(lambda, mu) per local cell (several bodies), or None (the scene's material)."""
@@ -245,22 +287,6 @@ class Discretisation:
             g.setArray(np.minimum(g.getArray(readonly=True), 1.0))
             out.append(g)
         return out
-
-    def _contact_diagonal(self):
-        """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
-        from (coulomb.py), or None for A's own. With bbar and lambda > RHO_LAMBDA_CAP mu
-        (nu > 0.3): that of lambda = RHO_LAMBDA_CAP mu. A's diagonal there is the
-        volumetric stiffness kappa ~ lambda, which the cell-mean constraint of B-bar does
-        not oppose to a node's motion when its neighbours follow: the node's stiffness
-        stays that of shear, mu. With rho ~ lambda the slip test |l_t - rho x_t| sees
-        only rho x_t and the iteration cycles (a block at nu = 0.4999 and F = 0.3:
-        DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap)."""
-        mat = self.scene["material"]
-        lam, mu = fem.lame(mat["young"], mat["poisson"])
-        if self.element not in fem.PRESSURES or lam <= RHO_LAMBDA_CAP * mu:
-            return None
-        return fem.assemble_diagonal(self.dm, self.elements, self.coords, RHO_LAMBDA_CAP * mu,
-                                     mu, self.frame, self.element)
 
     def _parts(self):
         """Boundary parts (faces), the dirichlet and symmetry constraints, clamped rows."""

@@ -63,7 +63,7 @@ def _summary(problem, time_total):
         "solver_mode": problem.solver_mode,
         "partitioner": problem.partitioner,
         "mesh": problem.hierarchy.describe(),        # hierarchy.py: how it was built
-        "element": problem.element,                  # fem.ELEMENTS (q1 and q2 bodies: q2)
+        "element": problem.element,        # fem.ELEMENTS (bodies: q2 where one is q2 or q2p1)
         "body_elements": None if problem.disc.body_element is None else
         dict(zip(problem.disc.bodies, problem.disc.body_element)),
         "mesh_levels": [lv.nd for lv in problem.hierarchy.levels],
@@ -158,8 +158,10 @@ def print_summary(comm, s, outdir=None):
              f"{s['converged']}" + _roundoff_note(s),
              f"loading: {s['loading']}", f"mesh: {s['mesh']}; element {s['element']}" + (
                  " (bodies: " + ", ".join(f"{b} {e}" for b, e in s["body_elements"].items())
-                 + "; a q1 body's cells are the q2 nodes' mesh)"
-                 if len(set((s.get("body_elements") or {}).values())) > 1 else "")]
+                 + ("; a q1 or bbar body's cells are the q2 nodes' mesh)" if s["element"] ==
+                    "q2" and {"q1", "bbar"} & set(s["body_elements"].values()) else ")")
+                 if set((s.get("body_elements") or {0: s["element"]}).values()) !=
+                 {s["element"]} else "")]
     est = s.get("error_estimate")
     if est is not None:
         nds = [int(n) for n in next(iter(est.values()))["levels"]] if est else []

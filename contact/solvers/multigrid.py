@@ -70,6 +70,9 @@ SOR_SWEEPS = 1
 DEFAULTS = {"pc_mg_galerkin": "both"}
 #: the KSPs whose preconditioner is this multigrid (coulomb.py, elasticity_ksp)
 PREFIXES = ("newton_", "elastic_")
+#: a body's element (several bodies) -> its element on the first coarse level: q1's family
+#: (bbar: the volumetric strain's cell mean, which q2p1's linear pressure refines)
+COARSE_ELEMENT = {"q1": "q1", "q2": "q1", "bbar": "bbar", "q2p1": "bbar"}
 #: the elements whose stiffness is BAIJ with a rediscretised first coarse operator (blocked):
 #: q1, and q2, whose first coarse level is q1 on its element mesh (the module docstring).
 #: make run's beam (q2 Nd 12, 2 ranks): 8.4 -> 6.2 s, the same answer (AIJ with Galerkin
@@ -115,9 +118,10 @@ class Multigrid:
     frame (contact/fem/frame.py, or None) and clamped (owned rows in the problem's basis) as
     the discretisation's. Mats are built on first use and shared by every solve.
     rediscretise: None for PETSc's Galerkin products, or (young, poisson, clamped_xyz, the
-    scene's mesh.rotate or None, the scene's bodies or None) for a first coarse operator
-    assembled on the level below (the module docstring; prepare); clamped_xyz: the
-    clamped rows in x, y, z; bodies: {name: box}, each with its own material."""
+    scene's mesh.rotate or None, (the scene's bodies, their coarse elements) or None) for a
+    first coarse operator assembled on the level below (the module docstring; prepare);
+    clamped_xyz: the clamped rows in x, y, z; bodies: {name: box}, each with its own
+    material, and each body's element there (COARSE_ELEMENT)."""
 
     def __init__(self, hierarchy, level, frame=None, clamped=(), rediscretise=None,
                  pair=None):
@@ -166,7 +170,7 @@ class Multigrid:
         # (it was not: 35 Krylov iterations against 19 on the block_incline scene at Nd 24)
         coords = lv.coords if rotate is None else mesh.turned(lv.coords, **rotate)
         groups = None if bodies is None else mesh_bodies.material_groups(
-            bodies, mesh_bodies.cell_bodies(lv.dm))
+            bodies[0], mesh_bodies.cell_bodies(lv.dm), bodies[1])
         A_c = fem.assemble_stiffness(lv.dm, lv.conn, coords, young, poisson,
                                      lattice=lv.lattice, groups=groups)
         P = self.hierarchy.prolongation(self.level)
@@ -333,7 +337,9 @@ def for_problem(disc, rediscretise=False):
     mat = disc.scene["material"]
     return Multigrid(disc.hierarchy, disc.level_index, disc.frame, disc.clamped,
                      (mat["young"], mat["poisson"], disc.clamped_xyz,
-                      disc.scene["mesh"].get("rotate"), disc.bodies) if rediscretise else None,
+                      disc.scene["mesh"].get("rotate"), None if disc.bodies is None else
+                      (disc.bodies, [COARSE_ELEMENT[e] for e in disc.body_element]))
+                     if rediscretise else None,
                      pair=disc.pair)
 
 

@@ -270,8 +270,8 @@ def test_stiffness_assembled_in_the_pair_basis(comm, slave, symmetric):
     assert fem.is_blocked(d.A) and d.pair is not None
     mat = sc["material"]
     args = (d.dm, d.elements, d.coords, mat["young"], mat["poisson"])
-    A = fem.assemble_stiffness(*args, groups=d._materials())
-    At = fem.assemble_stiffness(*args, groups=d._materials(), blocked=True, pair=d.pair)
+    A = fem.assemble_stiffness(*args, groups=d.materials())
+    At = fem.assemble_stiffness(*args, groups=d.materials(), blocked=True, pair=d.pair)
     ref = d.pair.transform_matrix(A)
     diff = At.convert(PETSc.Mat.Type.AIJ, PETSc.Mat())
     diff.axpy(-1.0, ref, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)

@@ -15,7 +15,8 @@ side), checked against closed forms and against runs of one element:
   the mixed scene's u on the punch, multipliers and force are those of the scene with
   both bodies of the punch's element (a q1 base of the node mesh's cells), and so are its
   cells' stresses, to 1e-9;
-* a body's element that is neither q1 nor q2: one line;
+* a body's element that is none of q1, q2, bbar, q2p1 (fem/test_pairs_lockfree.py): one
+  line;
 on 1 and 2 ranks (the patch test's closed form, the one-element runs)."""
 import copy
 
@@ -164,9 +165,9 @@ def punch_stress(pr):
     return S[np.lexsort(np.round(C, 9).T)]
 
 
-@pytest.mark.parametrize("value", ["q2p1", "bbar", 2])
-def test_a_bodys_element_is_q1_or_q2(value):
+@pytest.mark.parametrize("value", ["q3", "auto", 2])
+def test_a_bodys_element_is_one_of_four(value):
     sc = copy.deepcopy(mixed_blocks("q1"))
     sc["bodies"]["punch"]["element"] = value
-    with pytest.raises(SceneError, match="body 'punch': element must be q1 or q2"):
+    with pytest.raises(SceneError, match="body 'punch': element must be q1, q2, bbar, q2p1"):
         scenes.validate(sc)

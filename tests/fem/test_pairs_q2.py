@@ -231,7 +231,8 @@ def test_patch_q2_graded(comm, friction):
 @pytest.mark.parametrize("change, words", [
     (lambda s: s.update(side_pair("q2")), "q2 needs faces whose edges, seen along the "
                                           "pair's normal, are straight"),
-    (lambda s: s["mesh"].update(element="q2p1"), "several bodies has the q1 or q2 element"),
+    (lambda s: s["mesh"].update(element="q3"), "several bodies has the auto, q1, q2, bbar, "
+                                               "q2p1 element, got 'q3'"),
     (lambda s: (s["bodies"]["punch"].update(lower_surface="0.02 * x * x"),
                 s["boundary"].update(interface={"type": "contact", "body": "base",
                                                 "plane": ["z", 0.5],
@@ -240,8 +241,8 @@ def test_patch_q2_graded(comm, friction):
 ])
 def test_refused_q2(comm, change, words):
     """One line: a master whose edges are bent seen along the pair's normal (a pair along x,
-    the master's lower edge curved by its lower_surface; with q1 it runs); q2p1 on several
-    bodies. Allowed: a curved master face seen along z (a lower_surface, straight in x, y:
+    the master's lower edge curved by its lower_surface; with q1 it runs); an element that
+    is none of a body's. Allowed: a curved master face seen along z (a lower_surface, straight in x, y:
     the punch's bottom on the base's top, the slave), a lower_surface off the pair."""
     sc = q2_blocks()
     change(sc)

@@ -88,6 +88,15 @@ def _two_bodies_mixed():
     return scenes.validate(sc)
 
 
+def _two_bodies_bbar():
+    """_two_bodies at nu = 0.45 with a bbar punch (its contact stiffness rho read from the
+    diagonal of lambda capped: fem/discretisation.py capped_groups) on a q1 base."""
+    sc = two_blocks(friction=0.3, punch_cells=4, base=((-0.1, -0.1), (1.1, 1.1)),
+                    push=(0.002, 0.002, -0.004), poisson=0.45)
+    sc["bodies"]["punch"]["element"] = "bbar"
+    return scenes.validate(sc)
+
+
 def _three_bodies():
     """Three blocks stacked (two pairs: Z = I + both pairs' E), the top pushed down and
     sideways, F = 0.3."""
@@ -126,6 +135,7 @@ CASES = {
     "two_bodies": _two_bodies,
     "two_bodies_q2": _two_bodies_q2,
     "two_bodies_mixed": _two_bodies_mixed,
+    "two_bodies_bbar": _two_bodies_bbar,
     "three_bodies": _three_bodies,
     "two_axes": _two_axes,
 }
@@ -196,7 +206,7 @@ def test_newton_step_is_the_linearisation(case, storage):
     assert counts["slip"] > 0 and counts["stick"] > 0, counts
     assert counts["stick"] + counts["slip"] == counts["active"], counts
     if case not in ("incline", "two_bodies", "two_bodies_q2", "two_bodies_mixed",
-                    "three_bodies", "two_axes"):                                        # (all in contact)
+                    "two_bodies_bbar", "three_bodies", "two_axes"):     # (all in contact)
         assert counts["inactive"] > 0, counts
     floor = 1e-13
     # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor

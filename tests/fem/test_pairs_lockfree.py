@@ -1,0 +1,176 @@
+"""A body of a lock-free element (bbar, q2p1) beside bodies of another (fem/assembly.py: an
+element per group of cells; fem/discretisation.py: capped_groups; multigrid.py:
+COARSE_ELEMENT), checked against closed forms and against the one-body path of that
+element (no groups: its own assembly, multigrid and, at nu > 0.4, the mixed u-p split):
+
+* the contact patch test at nu = 0.45, a bbar or q2p1 punch on a base of another element:
+  u the linear field of each body, the multiplier p at every slave node, the stress
+  -p e_z e_z in every cell, to rounding;
+* against one body: a punch (nu = 0.45) pressed and sheared (F = 0.3) under its weight
+  on a base held still is the punch alone of that element on the rigid foundation
+  (the held master face is the foundation: the pair's gap is the slave's displacement):
+  u, multipliers, force and cell stresses to 1e-9, for bbar on q1, q2p1 on q2 and bbar
+  beside q2 (its cells the q2 node mesh's: the lone punch at twice the cells);
+* the contact stiffness rho = A_nn / w of such a body is that of lambda capped at
+  RHO_LAMBDA_CAP mu (fem/discretisation.py), as the one-body path's, and A's own where
+  lambda is below the cap;
+* runs/scenes/gasket.yaml (rubber between steel): converged in a few Newton steps, the
+  gasket in equilibrium between its two pairs;
+on 1 and 2 ranks."""
+import os
+
+import numpy as np
+import pytest
+from conftest import ROOT, fields, gather, rel_err, solve, two_blocks
+from test_pairs import P, exact
+
+from contact import scene as scenes
+from contact.analysis import stress
+from contact.fem.discretisation import RHO_LAMBDA_CAP
+from contact.solvers import driver
+
+NU = 0.45
+PUSH = (0.002, 0.002, -0.004)
+
+
+def patch_blocks(slave, base, nu=NU):
+    """two_blocks (pressed by p, symmetric) at nu, 3 x 3 base cells under 4 x 4 punch
+    cells, 2 through each, with the punch (the slave) of element `slave`."""
+    sc = two_blocks(0.3, base_cells=3, punch_cells=4, poisson=nu)
+    for b in sc["bodies"].values():
+        b["cells"][2] = 2
+    sc["bodies"]["punch"]["element"], sc["bodies"]["base"]["element"] = slave, base
+    return scenes.validate(sc)
+
+
+@pytest.mark.parametrize("slave, base", [("bbar", "q1"), ("bbar", "q2"), ("q2p1", "q1"),
+                                         ("q2p1", "q2")])
+def test_patch_lockfree_body(comm, slave, base):
+    pr = solve(patch_blocks(slave, base), comm)
+    assert pr.converged and pr.disc.body_element == [base, slave]
+    xyz, u = gather(pr)[:2]
+    off = np.abs(xyz[:, 2] - 0.5) > 1e-12          # (on it the bodies' nodes may meet)
+    assert rel_err(u[off], exact(xyz, (1.0, 1.0), NU)[off]) < 1e-8
+    lam = pr.cs.local_array(pr.l)
+    quadratic = "q2" in (slave, base) or slave == "q2p1"
+    assert pr.comm.tompi4py().allreduce(lam.size) == (81 if quadratic else 25)
+    assert np.all(np.abs(lam - P) < 1e-8 * P)
+    sig = stress.body_stress(pr)["cell"]
+    assert np.abs(sig - [0.0, 0.0, -P, 0.0, 0.0, 0.0]).max(initial=0.0) < 1e-8 * P
+
+
+def held_base(punch, base, nu=NU):
+    """A punch [0, 1]^2 x [0.5, 1] (4 x 4 x 2 cells, element `punch`) pushed down and
+    sideways by PUSH on a wider base (3 x 3 x 2 cells, element `base`) whose top and
+    bottom are held, F = 0.3, under its weight."""
+    sc = two_blocks(friction=0.3, base_cells=3, punch_cells=4, poisson=nu,
+                    base=((-0.1, -0.1), (1.1, 1.1)), push=PUSH)
+    for b in sc["bodies"].values():
+        b["cells"][2] = 2
+    sc["bodies"]["punch"]["element"], sc["bodies"]["base"]["element"] = punch, base
+    sc["boundary"]["still"] = {"type": "dirichlet", "body": "base", "plane": ["z", 0.5]}
+    sc["body_force"] = [0.0, 0.0, -0.01]
+    return scenes.validate(sc)
+
+
+def punch_alone(element, scale, nu=NU):
+    """held_base's punch as a one-body scene on the rigid foundation z = 0, its cells
+    scale times held_base's."""
+    return scenes.validate({
+        "name": "punch_alone",
+        "mesh": {"type": "box", "lower": [0.0, 0.0, 0.0], "upper": [1.0, 1.0, 0.5],
+                 "cells_per_nd": [4, 4, 2], "nd": scale, "element": element},
+        "material": {"young": 1.0, "poisson": nu},
+        "boundary": {"contact": {"type": "contact", "plane": ["z", 0.0]},
+                     "top": {"type": "dirichlet", "plane": ["z", 0.5],
+                             "displacement": list(PUSH)}},
+        "contact": {"friction": 0.3}, "body_force": [0.0, 0.0, -0.01],
+        "solver": {"mode": "newton", "newton_rtol": 1e-12}})
+
+
+def _by_place(xyz, v):
+    return v[np.lexsort(np.round(xyz, 9).T)]
+
+
+@pytest.mark.parametrize("punch, base, scale", [("bbar", "q1", 1), ("q2p1", "q2", 1),
+                                                ("bbar", "q2", 2)])
+def test_lockfree_body_is_the_element_alone(comm, punch, base, scale):
+    """The punch's u above the interface, its multipliers, the force and its cells'
+    stresses: those of the punch alone (its one-body path: at nu = 0.45 the mixed u-p
+    split)."""
+    two, one = solve(held_base(punch, base), comm), solve(punch_alone(punch, scale), comm)
+    assert two.converged and one.converged
+    assert two.disc.body_element == [base, punch] and one.element == punch
+    (xyz, u), (xyz1, u1) = gather(two)[:2], gather(one)[:2]
+    up, up1 = xyz[:, 2] > 0.5 + 1e-12, xyz1[:, 2] > 1e-12
+    a, b = _by_place(xyz[up], u[up]), _by_place(xyz1[up1], u1[up1])
+    assert a.shape == b.shape and rel_err(a, b) < 1e-9
+    lam, lam1 = fields(two)[1], fields(one)[1]
+    assert lam.shape == lam1.shape and rel_err(lam, lam1) < 1e-9
+    assert abs(two.normal_force() - one.normal_force()) < 1e-9 * abs(one.normal_force())
+    s, s1 = _cell_stress(two, 0.5), _cell_stress(one, 0.0)
+    assert s.shape == s1.shape and rel_err(s, s1) < 1e-9
+
+
+def _cell_stress(pr, z):
+    """The cell stresses (stress.body_stress; q2p1: its pressure's) of the cells above z,
+    every rank's, ordered by their centroids."""
+    st = stress.body_stress(pr)
+    up = st["centroid"][:, 2] > z
+    parts = pr.comm.tompi4py().allgather((st["centroid"][up] - [0.0, 0.0, z], st["cell"][up]))
+    return _by_place(*(np.concatenate([p[k] for p in parts]) for k in (0, 1)))
+
+
+def _contact_rows(pr, d, z):
+    """The z entries of the global Vec d at the punch's nodes on z = `z` (its body index
+    1), ordered by place, on every rank."""
+    X = pr.disc.coordinates.getArray(readonly=True).reshape(-1, 3)
+    v = d.getArray(readonly=True).reshape(-1, 3)[:, 2]
+    at = (np.abs(X[:, 2] - z) < 1e-12) & (pr.disc.node_bodies() == (1 if pr.disc.bodies else 0))
+    parts = pr.comm.tompi4py().allgather((X[at], v[at]))
+    return _by_place(np.concatenate([p[0] for p in parts]),
+                     np.concatenate([p[1] for p in parts]))
+
+
+@pytest.mark.parametrize("punch, base", [("bbar", "q1"), ("q2p1", "q2")])
+def test_contact_stiffness_of_a_lockfree_body_is_capped(comm, punch, base):
+    """The diagonal rho is read from at the punch's slave nodes is the one-body path's
+    (lambda = RHO_LAMBDA_CAP mu there) and below A's; at nu = 0.3 (lambda = 1.5 mu) none."""
+    two, one = held_base(punch, base), punch_alone(punch, 1)
+    pr2, pr1 = solve(two, comm), solve(one, comm)
+    d2, d1 = pr2.disc.contact_diagonal, pr1.disc.contact_diagonal
+    assert d2 is not None and d1 is not None
+    a, b = _contact_rows(pr2, d2, 0.5), _contact_rows(pr1, d1, 0.0)
+    assert a.size == b.size > 0 and rel_err(a, b) < 1e-12
+    own = pr2.disc.A.getDiagonal()
+    assert np.all(a < 0.9 * _contact_rows(pr2, own, 0.5))
+    own.destroy()
+    assert solve(held_base(punch, base, nu=RHO_LAMBDA_CAP / 5.0), comm).disc \
+        .contact_diagonal is None
+
+
+GASKET = os.path.join(ROOT, "runs", "scenes", "gasket.yaml")
+
+
+@pytest.mark.parametrize("gasket", ["bbar", "q2p1"])
+def test_gasket_between_steel_parts(comm, gasket):
+    """runs/scenes/gasket.yaml (a rubber gasket, nu = 0.49, E 2.1e4 times below the steel
+    parts around it; two pairs, the gasket the slave of both) at Nd 1: converged (to a
+    relative residual of 1e-12) within 8 Newton steps, the forcing terms capped for the contrast (driver.EW_CONTRAST; at 0.1
+    q2p1 ends DIVERGED_MAX_IT here), and the gasket in equilibrium: the base pushes it up
+    as hard as the flange pushes it down, to rounding."""
+    sc = scenes.load(GASKET)
+    sc["bodies"]["gasket"]["element"] = gasket
+    sc["solver"] = {"newton_rtol": 1e-12}
+    pr = solve(scenes.validate(sc), comm)
+    assert pr.converged and pr.iterations()["inner_total"] <= 8
+    assert driver.newton_defaults(None, None, pr.disc) == {"newton_ew_max": "0.01"}
+    seat, squeeze = (stress.pair_results(pr)[k]["normal"]
+                     for k in ("seat", "squeeze"))
+    assert seat > 0 and abs(seat - squeeze) < 1e-8 * seat
+
+
+def test_no_cap_without_a_contrast(comm):
+    """Bodies of E within CONTRAST of each other (held_base: the same E) keep the default
+    forcing terms."""
+    assert driver.newton_defaults(None, None, solve(held_base("bbar", "q1"), comm).disc) == {}
