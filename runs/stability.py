@@ -507,6 +507,14 @@ def cases_bodies():
                   f"F = {f}, Nd = {n}", mixed + nd(n) + ["-friction", f, "-element", q,
                                                         "-scene_bodies_punch_element", p])
              for p, q in (("q1", "q2"), ("q2", "q1")) for f in ("0.3", "1") for n in (1, 2)]
+    gasket = ["-scene", os.path.join(SCENES, "gasket.yaml")]
+    rows += [Case(f"bodies-gasket-{e}-nu{v}-nd{n}", f"a {e} rubber gasket (nu = {v}) between "
+                  f"steel parts, F = 0.3, Nd = {n}",
+                  gasket + nd(n) + ["-scene_bodies_gasket_element", e,
+                                    "-scene_bodies_gasket_material_poisson", v])
+             for e in ("q1", "bbar", "q2", "q2p1") for v in ("0.49", "0.4999") for n in (1, 2)]
+    rows += [Case(f"bodies-gasket-bbar-F{f}", f"the bbar gasket (nu = 0.49), F = {f}, Nd = 2",
+                  gasket + nd(2) + ["-friction", f]) for f in ("0", "1")]
     return rows
 
 
@@ -760,7 +768,9 @@ GROUPS = {
                "the plate; punch stiffness 1e-3 to 1e3 times the plate's (the stiff ones also "
                "with the plate's top as the slave side); punch meshes of 2 to 25 cells a side "
                "on the plate's 10; a q1 punch on a q2 plate and the reverse "
-               "(punch_on_plate_mixed.yaml), F = 0.3 and 1, Nd = 1, 2.", cases_bodies),
+               "(punch_on_plate_mixed.yaml), F = 0.3 and 1, Nd = 1, 2; a rubber gasket between "
+               "steel parts (gasket.yaml: E 2.1e4 times the steel's) as q1, bbar, q2 and "
+               "q2p1, nu = 0.49 and 0.4999, Nd = 1, 2, and F = 0, 1.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),

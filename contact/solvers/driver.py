@@ -15,6 +15,7 @@ from petsc4py import PETSc
 
 from contact import fem, options
 from contact.solvers import multigrid
+from contact.solvers.mixed import LAMBDA_SPLIT
 from contact.solvers import residuals as res
 from contact.solvers.paper.apg import APG
 from contact.solvers.coulomb import CoulombNewton
@@ -123,18 +124,23 @@ def stiff_slaves(disc):
 #: runs/scenes/gasket.yaml (rubber between steel, 2.1e4) at 0.1: 39 steps with q1 (Nd 2),
 #: 56 with q2 (Nd 1), DIVERGED_MAX_IT with q2p1 (Nd 1) and bbar (Nd 2); at 0.01: 9, 9, 5,
 #: 5 (runs/results/two-bodies-lockfree.md). On scenes of E ratio 3 (punch_on_plate.yaml,
-#: hertz_two_bodies.yaml) 0.01 costs 2-33 % more solve time, so it is not everyone's
+#: hertz_two_bodies.yaml) 0.01 costs 2-33 % more solve time, so it is not everyone's. So
+#: too for a body of bbar or q2p1 beyond lambda = LAMBDA_SPLIT mu, as the one-body split's
+#: (mixed.EW_MAX): a q2p1 punch at nu = 0.4999 on punch_on_plate.yaml, Nd 2, 29 -> 8 steps
 EW_CONTRAST, CONTRAST = 0.01, 10.0
 
 
 def newton_defaults(split, mg, disc=None):
     """The Newton option defaults of the pressure split, of the multigrid and of the bodies'
-    stiffness contrast (their forcing terms' caps: the smallest)."""
+    stiffness contrast or rubber (their forcing terms' caps: the smallest)."""
     out = {} if mg is None else mg.newton_defaults()
-    young = [] if disc is None or disc.bodies is None else \
-        [float(b["material"]["young"]) for b in disc.bodies.values()]
+    mats = [] if disc is None or disc.bodies is None else \
+        [(b["material"], e) for b, e in zip(disc.bodies.values(), disc.body_element)]
+    young = [float(m["young"]) for m, _ in mats]
+    rubber = any(e in fem.PRESSURES and fem.lame(m["young"], m["poisson"])[0] > LAMBDA_SPLIT *
+                 fem.lame(m["young"], m["poisson"])[1] for m, e in mats)
     contrast = {"newton_ew_max": str(EW_CONTRAST)} \
-        if young and max(young) >= CONTRAST * min(young) else {}
+        if young and (max(young) >= CONTRAST * min(young) or rubber) else {}
     for part in ({} if split is None else split.newton_defaults(), contrast):
         for k, v in part.items():
             out[k] = v if k not in out else str(min(float(v), float(out[k])))

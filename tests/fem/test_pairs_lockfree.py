@@ -170,7 +170,10 @@ def test_gasket_between_steel_parts(comm, gasket):
     assert seat > 0 and abs(seat - squeeze) < 1e-8 * seat
 
 
-def test_no_cap_without_a_contrast(comm):
-    """Bodies of E within CONTRAST of each other (held_base: the same E) keep the default
-    forcing terms."""
-    assert driver.newton_defaults(None, None, solve(held_base("bbar", "q1"), comm).disc) == {}
+def test_forcing_terms_capped_for_rubber_alone(comm):
+    """Bodies of one E (held_base, nu = 0.45: lambda = 9 mu) keep the default forcing terms
+    as q1; with a bbar punch (lambda > LAMBDA_SPLIT mu, as the one-body split) they are
+    capped."""
+    defaults = (driver.newton_defaults(None, None, solve(held_base(p, "q1"), comm).disc)
+                for p in ("q1", "bbar"))
+    assert list(defaults) == [{}, {"newton_ew_max": "0.01"}]
