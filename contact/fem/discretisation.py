@@ -49,8 +49,8 @@ def element_of(scene):
 
 def body_elements(scene):
     """Each body's element (a body's own `element:`, else the run's: -element or
-    mesh.element), or None for a scene of one body. Each is q1's family (q1, bbar: on the node
-    mesh where q2's is beside, q1_beside_q2) or q2's (q2, q2p1)."""
+    mesh.element), or None for a scene of one body. Each is q1's family (q1, bbar: on the
+    node mesh where q2's is beside, q1_beside_q2) or q2's (q2, q2p1)."""
     if "bodies" not in scene:
         return None
     el = _element(scene)
@@ -89,7 +89,7 @@ def q1_beside_q2(disc):
 
 
 def capped_groups(groups):
-    """groups' (Discretisation._materials) with each body of a condensed pressure (bbar,
+    """groups' (Discretisation.materials) with each body of a condensed pressure (bbar,
     q2p1) and lambda > RHO_LAMBDA_CAP mu at lambda = RHO_LAMBDA_CAP mu, its mu kept (as
     (young, poisson)); None where there is none."""
     nu = RHO_LAMBDA_CAP / (2.0 * (RHO_LAMBDA_CAP + 1.0))         # lambda / mu = the cap
@@ -101,13 +101,13 @@ def capped_groups(groups):
 
 def contact_diagonal(disc):
     """The diagonal the Newton iteration takes its contact stiffness rho = A_nn / w
-    from (coulomb.py) for Discretisation disc, or None for A's own. With bbar and
-    lambda > RHO_LAMBDA_CAP mu (nu > 0.3): that of lambda = RHO_LAMBDA_CAP mu. A's diagonal there is the
-    volumetric stiffness kappa ~ lambda, which the cell-mean constraint of B-bar does
-    not oppose to a node's motion when its neighbours follow: the node's stiffness
-    stays that of shear, mu. With rho ~ lambda the slip test |l_t - rho x_t| sees
-    only rho x_t and the iteration cycles (a block at nu = 0.4999 and F = 0.3:
-    DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap). Several bodies:
+    from (coulomb.py) for Discretisation disc, or None for A's own. With bbar (or q2p1)
+    and lambda > RHO_LAMBDA_CAP mu (nu > 0.3): that of lambda = RHO_LAMBDA_CAP mu. A's
+    diagonal there is the volumetric stiffness kappa ~ lambda, which the cell-mean
+    constraint of B-bar does not oppose to a node's motion when its neighbours follow: the
+    node's stiffness stays that of shear, mu. With rho ~ lambda the slip test
+    |l_t - rho x_t| sees only rho x_t and the iteration cycles (a block at nu = 0.4999 and
+    F = 0.3: DIVERGED_MAX_IT with exact linear solves; 7 steps with the cap). Several bodies:
     such bodies' cells at that lambda, the others' as they are (capped_groups), in A's
     basis (a pair's: the whole A~ assembled again, at set-up)."""
     mat = disc.scene["material"]

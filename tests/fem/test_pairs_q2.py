@@ -242,8 +242,9 @@ def test_patch_q2_graded(comm, friction):
 def test_refused_q2(comm, change, words):
     """One line: a master whose edges are bent seen along the pair's normal (a pair along x,
     the master's lower edge curved by its lower_surface; with q1 it runs); an element that
-    is none of a body's. Allowed: a curved master face seen along z (a lower_surface, straight in x, y:
-    the punch's bottom on the base's top, the slave), a lower_surface off the pair."""
+    is none of a body's. Allowed: a curved master face seen along z (a lower_surface,
+    straight in x, y: the punch's bottom on the base's top, the slave), a lower_surface
+    off the pair."""
     sc = q2_blocks()
     change(sc)
     if words is None:
