@@ -22,11 +22,11 @@ blocks: each interface a contact part with its master), which share no slave nod
 whose slave nodes are no other pair's master nodes (checked on the mesh). A contact part
 without `master:` presses its body on the rigid foundation as in a one-body scene (beside
 pairs: the foundation's normal +x, +y or +z, none of its nodes a pair's slave node). This
-version: q1, q2, bbar or q2p1 (a body's `element:`, else mesh.element or -element; auto is
-q1), slave
-faces a flat side of their body (normal to x, y or z; pairs may face different axes). With
-q2 a pair couples the elements' 9-node faces (biquadratic, isoparametric, their dual basis:
-fem/mortar_q2.py), whose edges must be straight seen along the pair's normal: graded bodies
+version: q1, q2, bbar or q2p1 (a body's `element:`, else mesh.element or -element; auto, the
+default: bbar for a body of nu >= 0.4, else q1), slave faces a flat side of their body
+(normal to x, y or z; pairs may face different axes). With q2 a pair couples the
+elements' 9-node faces (biquadratic, isoparametric, their dual basis: fem/mortar_q2.py),
+whose edges must be straight seen along the pair's normal: graded bodies
 and a lower_surface master on a pair along z are; a lower_surface body's side faces in a
 pair along x or y are refused in one line (use q1). Bodies may mix the two: then every
 body has the q2 nodes (the mesh refined once more), and a q1 body's cells are those of
@@ -65,7 +65,7 @@ from contact import expression, scene_grading
 
 BODY_KEYS = ("lower", "upper", "cells", "material", "element", "grading", "lower_surface",
              "mesh")
-#: the elements of a scene with several bodies (auto: q1)
+#: the elements of a scene with several bodies (auto: discretisation.body_elements)
 BODY_ELEMENTS = ("auto", "q1", "q2", "bbar", "q2p1")
 
 
@@ -116,11 +116,10 @@ def expand(scene):
         boxes.append((name, (lo, hi)))
     mesh.update(type="bodies", bodies=bodies)
     mesh.setdefault("nd", 1)
-    el = mesh.setdefault("element", "q1")
+    el = mesh.setdefault("element", "auto")
     if el not in BODY_ELEMENTS:
         raise SceneError(f"a scene with several bodies has the {', '.join(BODY_ELEMENTS)} "
                          f"element, got {el!r}")
-    mesh["element"] = "q1" if el == "auto" else el
     scene["mesh"] = mesh
     first = next(iter(bodies.values()))["material"]
     if scene.setdefault("material", dict(first)) != first:

@@ -49,12 +49,16 @@ def element_of(scene):
 
 def body_elements(scene):
     """Each body's element (a body's own `element:`, else the run's: -element or
-    mesh.element), or None for a scene of one body. Each is q1's family (q1, bbar: on the
-    node mesh where q2's is beside, q1_beside_q2) or q2's (q2, q2p1)."""
+    mesh.element; auto: bbar where the body's nu >= AUTO_LOCKFREE_NU, else q1), or None for
+    a scene of one body. Each is q1's family (q1, bbar: on the node mesh where q2's is
+    beside, q1_beside_q2) or q2's (q2, q2p1). auto takes bbar, not one body's q2p1: a q2p1
+    body gives every body q2's nodes (the mesh refined once more)."""
     if "bodies" not in scene:
         return None
     el = _element(scene)
-    return [b.get("element", el) for b in scene["bodies"].values()]
+    auto = options.get("element", scene) == "auto"
+    return [b.get("element", ("q1" if b["material"]["poisson"] < AUTO_LOCKFREE_NU else
+                              "bbar") if auto else el) for b in scene["bodies"].values()]
 
 
 def _element(scene):

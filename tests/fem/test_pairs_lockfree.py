@@ -17,6 +17,7 @@ element (no groups: its own assembly, multigrid and, at nu > 0.4, the mixed u-p 
 * runs/scenes/gasket.yaml (rubber between steel): converged in a few Newton steps, the
   gasket in equilibrium between its two pairs;
 on 1 and 2 ranks."""
+import copy
 import os
 
 import numpy as np
@@ -26,7 +27,7 @@ from test_pairs import P, exact
 
 from contact import scene as scenes
 from contact.analysis import stress
-from contact.fem.discretisation import RHO_LAMBDA_CAP
+from contact.fem.discretisation import RHO_LAMBDA_CAP, body_elements
 from contact.solvers import driver
 
 NU = 0.45
@@ -157,15 +158,15 @@ def test_gasket_between_steel_parts(comm, gasket):
     """runs/scenes/gasket.yaml (a rubber gasket, nu = 0.49, E 2.1e4 times below the steel
     parts around it; two pairs, the gasket the slave of both) at Nd 1: converged (to a
     relative residual of 1e-12) within 8 Newton steps, the forcing terms capped for the
-    contrast (driver.EW_CONTRAST; at 0.1 both cases fail this test: checked) at EW_RATIO /
-    2.1e4, and the gasket in equilibrium: the base pushes it up as hard as the flange pushes
+    contrast (driver.EW_CONTRAST; at 0.1 both cases fail this test: checked) at EW_FLOOR,
+    and the gasket in equilibrium: the base pushes it up as hard as the flange pushes
     it down, to rounding."""
     sc = scenes.load(GASKET)
     sc["bodies"]["gasket"]["element"] = gasket
     sc["solver"] = {"newton_rtol": 1e-12}
     pr = solve(scenes.validate(sc), comm)
     assert pr.converged and pr.iterations()["inner_total"] <= 8
-    assert driver.newton_defaults(None, None, pr.disc) == {"newton_ew_max": "9.52e-05"}
+    assert driver.newton_defaults(None, None, pr.disc) == {"newton_ew_max": "0.0001"}
     seat, squeeze = (stress.pair_results(pr)[k]["normal"]
                      for k in ("seat", "squeeze"))
     assert seat > 0 and abs(seat - squeeze) < 1e-8 * seat
@@ -175,8 +176,7 @@ def test_gasket_between_steel_parts(comm, gasket):
 def test_frictionless_gasket(comm, gasket, nd):
     """The gasket without friction: converged within 6 Newton steps (measured 5 and 2) and
     in equilibrium. With the forcing terms capped at EW_CONTRAST = 0.01 alone both stagnate
-    (DIVERGED_STAGNATION after 71 and 75 steps: checked); driver.EW_RATIO's cap converges
-    them."""
+    (DIVERGED_STAGNATION after 71 and 75 steps: checked); driver.EW_FLOOR converges them."""
     sc = scenes.load(GASKET)
     sc["bodies"]["gasket"]["element"] = gasket
     sc["mesh"]["nd"] = nd
@@ -185,6 +185,38 @@ def test_frictionless_gasket(comm, gasket, nd):
     assert pr.converged and pr.iterations()["inner_total"] <= 6
     seat, squeeze = (stress.pair_results(pr)[k]["normal"] for k in ("seat", "squeeze"))
     assert seat > 0 and abs(seat - squeeze) < 1e-8 * seat
+
+
+@pytest.mark.parametrize("ratio, cap, steps", [(1e2, "0.001", None), (1e3, "0.0001", 6)])
+def test_forcing_terms_scaled_with_contrast(comm, ratio, cap, steps):
+    """punch_on_plate.yaml with the punch (the slave) `ratio` times the plate's E: the
+    forcing terms capped at driver.EW_RATIO / ratio (at least EW_FLOOR); at 1e3, Nd 2 the
+    stiff slave converges within 6 Newton steps (measured 4; 10 at 0.01, 33 at 1e-3)."""
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "punch_on_plate.yaml"))
+    plate = sc["bodies"]["plate"]["material"]["young"]
+    sc["bodies"]["punch"]["material"]["young"] = ratio * plate
+    sc.setdefault("mesh", {})["nd"] = 2 if steps else 1
+    pr = solve(scenes.validate(sc), comm)
+    assert driver.newton_defaults(None, None, pr.disc) == {"newton_ew_max": cap}
+    assert pr.converged and (steps is None or pr.iterations()["inner_total"] <= steps)
+
+
+def test_auto_element_per_body():
+    """auto (a scene's default with bodies) gives a body of nu >= AUTO_LOCKFREE_NU bbar (q1's
+    family: the others keep their q1 nodes), the others q1; a scene's element q1 is every
+    body's where the body names none; a body's own element wins."""
+    sc = scenes.load(GASKET)
+    del sc["bodies"]["gasket"]["element"], sc["mesh"]["element"]
+    auto = scenes.validate(copy.deepcopy(sc))
+    assert auto["mesh"]["element"] == "auto"
+    assert body_elements(auto) == ["q1", "bbar", "q1"]
+    sc["bodies"]["base"]["element"] = "q2"
+    assert body_elements(scenes.validate(copy.deepcopy(sc))) == ["q2", "bbar", "q1"]
+    sc["mesh"]["element"] = "q1"
+    assert body_elements(scenes.validate(copy.deepcopy(sc))) == ["q2", "q1", "q1"]
+    sc["mesh"]["element"] = "auto"
+    sc["bodies"]["gasket"]["material"]["poisson"] = 0.3
+    assert body_elements(scenes.validate(sc)) == ["q2", "q1", "q1"]
 
 
 def test_forcing_terms_capped_for_rubber_alone(comm):
