@@ -285,6 +285,14 @@ def aspect(conn, coords):
     return float((length.max(axis=1) / length.min(axis=1)).max())
 
 
+def share(owned_label, comm):
+    """The share of a level's vertices (all ranks) that lie on a line of two or more
+    (owned_label: level_lines' labels of the rank's owned vertices)."""
+    counts = np.unique(owned_label, return_counts=True)[1]
+    on, n = comm.allreduce(np.array([counts[counts > 1].sum(), owned_label.size]))
+    return float(on) / max(float(n), 1.0)
+
+
 def level_lines(hierarchy, level, ratio):
     """{j: the line label of each owned vertex of level j, in the order of its rows} for
     the multigrid levels j = 1 .. level of `hierarchy` with lines (none for ratio 0). The

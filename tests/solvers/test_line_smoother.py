@@ -4,14 +4,16 @@ smoother's matrix is the inverse of the operator's block-diagonal part (checked 
 dense inverse, also after some blocks change), and on a plate of aspect-20 cells the
 default solver's Krylov iterations fall at least threefold, to the same answer, on 1, 2 and
 more ranks; point-block Jacobi (-multigrid_line_ratio 0) is the negative control."""
+import os
+
 import numpy as np
 import pytest
-from conftest import fields, paper_scene, rel_err, skip_in_parallel, solve
+from conftest import ROOT, fields, paper_scene, rel_err, skip_in_parallel, solve
 
 from petsc4py import PETSc
 
 from contact import mesh, options, scene as scenes
-from contact.solvers import line_smoother
+from contact.solvers import line_smoother, multigrid
 from contact.solvers.loop import ConvergenceError
 
 
@@ -223,3 +225,40 @@ def test_kept_smoother_follows_its_operator_changed_in_place():
     new = np.linalg.solve(np.where(same, A, 0.0), x.getArray())
     assert np.abs(y.getArray() - new).max() < 1e-12 * np.abs(new).max()
     assert np.abs(old - new).max() > 0.1 * np.abs(new).max()
+
+
+def _u_block_fine_smoother(pr):
+    ku = pr.inner.ksp.getPC().getFieldSplitSubKSP()[0]
+    return ku.getPC().getMGSmoother(ku.getPC().getMGLevels() - 1)
+
+
+@pytest.mark.parametrize("plate", [True, False])
+def test_q2p1_u_block_takes_lines_only_on_a_thin_body(plate):
+    """q2p1's u-block (Richardson + SOR, mixed.py) takes the lines instead where at least
+    multigrid.SOR_LINE_SHARE of a level's vertices lie on them: a plate 3 x 1 x 0.03 of
+    aspect-8 cells (Nd 2; every vertex on its column across the thickness: share 1) does
+    (measured 98 Krylov iterations, 225 with SOR); the beam graded toward
+    its edges (paper_beam_graded.yaml: cells of aspect 8 near them, a few columns) keeps
+    SOR there (its finest level's share 0.07-0.18: measured faster with SOR, as Hertz)."""
+    if plate:
+        sc = paper_scene(nd=2, mode="newton")
+        sc["mesh"].update(upper=[3.0, 1.0, 0.03], cells_per_nd=[12, 4, 1])
+        sc["boundary"]["top"]["plane"][1] = 0.03
+    else:
+        sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "paper_beam_graded.yaml"))
+        sc["mesh"]["nd"] = 2
+    sc["mesh"]["element"] = "q2p1"
+    sc["material"]["poisson"] = 0.4999
+    pr = solve(scenes.validate(sc))
+    mg = pr.solvers.multigrid
+    assert pr.converged and pr.inner.split is not None and pr.inner.split.sor
+    fine = mg.n_levels - 1
+    assert fine in mg.lines
+    share = mg.line_share[fine]
+    smoother = _u_block_fine_smoother(pr)
+    if plate:
+        assert share == 1.0 and smoother.getPC().getType() == PETSc.PC.Type.PYTHON
+    else:
+        assert 0.0 < share < multigrid.SOR_LINE_SHARE
+        assert smoother.getType() == PETSc.KSP.Type.RICHARDSON
+        assert smoother.getPC().getType() == PETSc.PC.Type.SOR
