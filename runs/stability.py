@@ -24,7 +24,7 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   rubber    nu from 0.49 to 0.4999999, q2p1 and bbar, the beam and Hertz
   fbig      F from 0.3 to 1e6: the beam at Nd 4-32, the friction-held block, Hertz
   hertznu   Hertz, nu from 0.3 to 0.4999999 x q1, q2, q2p1, bbar at nd 2 and 3
-  plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2
+  plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2; rubber plates
   scenefiles  malformed scene files (billion laughs, deep nesting, ...): refused in one line
   bodies    two bodies (punch on plate): F x Nd, initial gaps, stiffness and mesh ratios
 A row's run directory (contact/validation/harness.py) holds summary.json, solution.h5,
@@ -375,7 +375,8 @@ PLATES = ((0.03, 5), (0.03, 10), (0.03, 20), (0.1, 10))
 
 def cases_plates():
     """The default solver on plates 3 x 1 x T pressed on their face (T / length 1/100 and
-    1/30), cells of aspect 5 to 20, one to three cells through the thickness, q1 and q2."""
+    1/30), cells of aspect 5 to 20, one to three cells through the thickness, q1 and q2;
+    rubber plates (bbar, q2p1 at nu = 0.49, 0.4999) of aspect-20 and aspect-10 cells."""
     out = []
     for t, a in PLATES:
         c = (a, max(1, round(a / 3)), 1)
@@ -385,6 +386,17 @@ def cases_plates():
                 out.append(Case(f"plate-T{num(t)}-a{a}-{el}-nd{n}",
                                 f"plate 3 x 1 x {num(t)}, {el}, {mesh((3, 1, t), c, n)}",
                                 nd(n) + on + cells(c) + ["-element", el] + NEWTON))
+    for t, a in PLATES[:2]:
+        c = (a, max(1, round(a / 3)), 1)
+        on = ["-scene_mesh_upper_2", num(t), "-scene_boundary_top_plane_1", num(t)]
+        for el in ("q2p1", "bbar"):
+            for nu in ("0.49", "0.4999"):
+                for n in (1, 2):
+                    out.append(Case(
+                        f"plate-T{num(t)}-a{a}-{el}-nu{nu}-nd{n}",
+                        f"rubber plate 3 x 1 x {num(t)}, {el}, nu = {nu}, "
+                        f"{mesh((3, 1, t), c, n)}",
+                        nd(n) + on + cells(c) + ["-element", el, "-poisson", nu] + NEWTON))
     return out
 
 

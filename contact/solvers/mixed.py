@@ -68,6 +68,13 @@ LAMBDA_SPLIT = 4.0
 #: bbar, Nd = 8), 1e-3 and 1e-4 converged (8-9 steps); at 0.499999 the bbar beam took 18
 #: steps, 922 Krylov iterations at 0.01, 9 and 509 at 1e-3
 EW_MAX, EW_LAMBDA = 0.01, 500.0
+#: ... and at most EW_THIN on a thin body (Multigrid.thin: the lines of its u-block's
+#: multigrid hold most vertices). Plates 3 x 1 x 0.03 of cells of aspect 8, 10 and 20,
+#: bbar and q2p1 at nu = 0.49 and 0.4999, Nd 1 and 2 (24 rows; runs/results/
+#: stability-notes.md): with the caps above (at most 0.01) 5 fail and 9 take 13-100 Newton
+#: steps; at 1e-3 2 fail; at 1e-4 all converge, 20 of them in 6-8 steps (10, 16, 8, 67
+#: the others), at up to 1.6x the solve time of the rows that converged before in 7-9
+EW_THIN = 1e-4
 #: a failed linear solve of a bbar body beyond this lambda / mu names q2p1 (failure_hint)
 BBAR_LAMBDA_MU = 1e5
 #: a bbar body beyond this lambda / mu (nu > 0.4999995) is refused before its first solve,
@@ -207,15 +214,19 @@ class Split:
 
     def newton_defaults(self):
         """The Newton iteration's own option defaults with this split (the command line
-        wins): its forcing terms' cap, tighter as lambda / mu grows (EW_LAMBDA), and the
-        full Schur factorisation (upper's second u-block cycle too): Krylov iterations
-        upper -> full 745 -> 528 (Hertz, bbar, nd = 3, nu = 0.4999), 509 -> 376 (beam,
-        bbar, Nd = 8, 0.499999), 221 -> 119 (Hertz, q2p1, nd = 2, 0.4999), 114 -> 87 (beam,
-        q2p1, N = 4, 0.4999), in about the same time; Hertz, bbar, nd = 3, nu = 0.499999:
-        converged in 6 steps where upper's second solve failed (1000 iterations). q2p1
-        (SOR_ELEMENTS): the lower factorisation, one u-block cycle, with SOR's cheaper
-        smoothing and the u-block kept from step to step: half the time of full there."""
-        return {"newton_ew_max": f"{min(EW_MAX, EW_LAMBDA / self.lam_mu):.3g}",
+        wins): its forcing terms' cap, tighter as lambda / mu grows (EW_LAMBDA) and on a
+        thin body (EW_THIN), and the full Schur factorisation (upper's second u-block
+        cycle too): Krylov iterations upper -> full 745 -> 528 (Hertz, bbar, nd = 3,
+        nu = 0.4999), 509 -> 376 (beam, bbar, Nd = 8, 0.499999), 221 -> 119 (Hertz, q2p1,
+        nd = 2, 0.4999), 114 -> 87 (beam, q2p1, N = 4, 0.4999), in about the same time;
+        Hertz, bbar, nd = 3, nu = 0.499999: converged in 6 steps where upper's second
+        solve failed (1000 iterations). q2p1 (SOR_ELEMENTS): the lower factorisation, one
+        u-block cycle, with SOR's cheaper smoothing and the u-block kept from step to step:
+        half the time of full there."""
+        ew = min(EW_MAX, EW_LAMBDA / self.lam_mu)
+        if self.mg is not None and self.mg.thin:
+            ew = min(ew, EW_THIN)
+        return {"newton_ew_max": f"{ew:.3g}",
                 "newton_pc_fieldsplit_schur_fact_type":
                     "lower" if self.sor else "full"}
 

@@ -66,16 +66,16 @@ COARSE_LU_MAX_SPLIT = 30000
 #: PCMG's default is 2). Hertz q2p1, nu = 0.4999, nd 3, lower Schur factorisation: 175
 #: -> 233 Krylov iterations, solve 19.9 -> 16.1 s (the u-block's sweeps cost most)
 SOR_SWEEPS = 1
-#: a level smoothed by SOR (setup's sor: q2p1's u-block) takes the lines instead where at
-#: least this share of its vertices lie on lines (line_smoother.share: a thin body
-#: throughout); where fewer do, SOR's sweep, stronger than Chebyshev + point-block Jacobi
-#: on the rest, wins. q2p1 at nu = 0.4999, 1 rank, Krylov / solve s, lines -> SOR
-#: (runs/results/stability-notes.md, 2026-12-06): Hertz (gmsh; 30 % and 47 % of the
-#: vertices on lines at nd 2, 3, 57-60 % at nd 5-8) nd 2 200 / 25.4 -> 164 / 17.5, nd 3 294
-#: / 59.9 -> 259 / 40.0; the graded beam (paper_beam_graded.yaml, 7-18 %) Nd 8 364 / 36.4
-#: -> 368 / 29.9; a plate 3 x 1 x 0.03 of aspect-8 cells (100 %) Nd 3 110 / 10.3 -> 297 /
-#: 19.1
-SOR_LINE_SHARE = 0.8
+#: a level is a thin body's (`thin`) where at least this share of its vertices lie on
+#: lines (line_smoother.share). One smoothed by SOR (setup's sor: q2p1's u-block) takes the
+#: lines instead only there; where fewer do, SOR's sweep, stronger than Chebyshev +
+#: point-block Jacobi on the rest, wins. q2p1 at nu = 0.4999, 1 rank, Krylov / solve s,
+#: lines -> SOR (runs/results/stability-notes.md, 2026-12-06): Hertz (gmsh; 30 % and 47 %
+#: of the vertices on lines at nd 2, 3, 57-60 % at nd 5-8) nd 2 200 / 25.4 -> 164 / 17.5,
+#: nd 3 294 / 59.9 -> 259 / 40.0; the graded beam (paper_beam_graded.yaml, 7-18 %) Nd 8
+#: 364 / 36.4 -> 368 / 29.9; a plate 3 x 1 x 0.03 of aspect-8 cells (100 %) Nd 3 110 /
+#: 10.3 -> 297 / 19.1
+THIN_SHARE = 0.8
 #: defaults under the KSP's prefix (the command line wins), for PETSc's Galerkin products
 DEFAULTS = {"pc_mg_galerkin": "both"}
 #: the KSPs whose preconditioner is this multigrid (coulomb.py, elasticity_ksp)
@@ -164,6 +164,11 @@ class Multigrid:
         return {"newton_ew_max": f"{cap:.3g}"}
 
     @property
+    def thin(self):
+        """Whether a level is a thin body's: THIN_SHARE of its vertices on lines."""
+        return any(v >= THIN_SHARE for v in self.line_share.values())
+
+    @property
     def rediscretised(self):
         return self._rediscretise is not None
 
@@ -238,7 +243,7 @@ class Multigrid:
         defaults to insert around setFromOptions. The coarsest level is factored up to
         coarse_lu_max dofs, else solved by one GAMG cycle. sor: the levels smoothed by
         Richardson + SOR instead of Chebyshev (a host smoother: not with GPU Vecs), but by
-        their lines where at least SOR_LINE_SHARE of the vertices lie on lines."""
+        their lines where at least THIN_SHARE of the vertices lie on lines."""
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.MG)
         pc.setMGLevels(self.n_levels)
@@ -249,7 +254,7 @@ class Multigrid:
         for j in range(1, self.n_levels):
             spc = pc.getMGSmoother(j).getPC()
             if self.lines.get(j) is not None and not gpu_vecs() and \
-                    (not sor or self.line_share[j] >= SOR_LINE_SHARE):
+                    (not sor or self.line_share[j] >= THIN_SHARE):
                 spc.setType(PETSc.PC.Type.PYTHON)
                 spc.setPythonContext(line_smoother.LineSmoother(self.lines[j]))
             elif sor and not gpu_vecs():
