@@ -303,14 +303,28 @@ def level_lines(hierarchy, level, ratio):
     if not ratio:
         return out
     for j in range(1, level + 1):
-        lv = hierarchy.levels[j]
-        comm = lv.dm.getComm().tompi4py()
-        label, short = _lines(lv.conn, lv.coords, ratio)
-        if not comm.allreduce(short, op=MPI.LOR):
-            continue
-        lg, owned, (lo, hi) = owned_blocks(lv.dm)
-        own = np.flatnonzero(owned)
-        row_label = np.empty(hi - lo, dtype=np.int64)
-        row_label[lg[own] - lo] = label[own]
-        out[j] = row_label
+        label = _owned_lines(hierarchy.levels[j], ratio)
+        if label is not None:
+            out[j] = label
     return out
+
+
+def thin(lv, ratio, at_least):
+    """Whether at least the share `at_least` of mesh level lv's vertices (all ranks) lie on
+    lines (a thin body: mixed.Split's where its u-block has no multigrid)."""
+    label = _owned_lines(lv, ratio) if ratio else None
+    return label is not None and share(label, lv.dm.getComm().tompi4py()) >= at_least
+
+
+def _owned_lines(lv, ratio):
+    """Level lv's line labels of its owned vertices, in the order of its rows, or None where
+    no rank's cells have a short edge."""
+    comm = lv.dm.getComm().tompi4py()
+    label, short = _lines(lv.conn, lv.coords, ratio)
+    if not comm.allreduce(short, op=MPI.LOR):
+        return None
+    lg, owned, (lo, hi) = owned_blocks(lv.dm)
+    own = np.flatnonzero(owned)
+    row_label = np.empty(hi - lo, dtype=np.int64)
+    row_label[lg[own] - lo] = label[own]
+    return row_label

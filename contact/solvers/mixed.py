@@ -54,7 +54,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact import fem, options, petsc_compat
-from contact.solvers import multigrid
+from contact.solvers import line_smoother, multigrid
 
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
 LAMBDA_SPLIT = 4.0
@@ -68,12 +68,12 @@ LAMBDA_SPLIT = 4.0
 #: bbar, Nd = 8), 1e-3 and 1e-4 converged (8-9 steps); at 0.499999 the bbar beam took 18
 #: steps, 922 Krylov iterations at 0.01, 9 and 509 at 1e-3
 EW_MAX, EW_LAMBDA = 0.01, 500.0
-#: ... and at most EW_THIN on a thin body (Multigrid.thin: the lines of its u-block's
-#: multigrid hold most vertices). Plates 3 x 1 x 0.03 of cells of aspect 8, 10 and 20,
-#: bbar and q2p1 at nu = 0.49 and 0.4999, Nd 1 and 2 (24 rows; runs/results/
-#: stability-notes.md): with the caps above (at most 0.01) 5 fail and 9 take 13-100 Newton
-#: steps; at 1e-3 2 fail; at 1e-4 all converge, 20 of them in 6-8 steps (10, 16, 8, 67
-#: the others), at up to 1.6x the solve time of the rows that converged before in 7-9
+#: ... and at most EW_THIN on a thin body (Split.thin: most of its vertices on lines).
+#: Plates 3 x 1 x 0.03 of cells of aspect 8, 10 and 20, bbar and q2p1 at nu = 0.49 and
+#: 0.4999, Nd 1 and 2 (24 rows; runs/results/stability-notes.md): with the caps above (at
+#: most 0.01) 5 fail and 9 take 13-100 Newton steps; at 1e-3 2 fail; at 1e-4 all converge,
+#: 20 of them in 6-8 steps (10, 16, 8, 67 the others), in up to 1.6x the solve time of the
+#: rows that converged in 7-9 steps before
 EW_THIN = 1e-4
 #: a failed linear solve of a bbar body beyond this lambda / mu names q2p1 (failure_hint)
 BBAR_LAMBDA_MU = 1e5
@@ -155,6 +155,9 @@ class Split:
         #: the u-block's preconditioner: geometric multigrid on the mesh hierarchy (that of
         #: A's solves: linear.py), or GAMG on a mesh of one level (None)
         self.mg = mg
+        #: a thin body (its u-block multigrid's, else its mesh's lines: multigrid.THIN_SHARE)
+        self.thin = mg.thin if mg is not None else line_smoother.thin(
+            disc.level, options.get("multigrid_line_ratio"), multigrid.THIN_SHARE)
         mat = disc.scene["material"]
         self.lam_mu = lam / mu
         self.element = disc.element
@@ -224,7 +227,7 @@ class Split:
         u-block cycle, with SOR's cheaper smoothing and the u-block kept from step to step:
         half the time of full there."""
         ew = min(EW_MAX, EW_LAMBDA / self.lam_mu)
-        if self.mg is not None and self.mg.thin:
+        if self.thin:
             ew = min(ew, EW_THIN)
         return {"newton_ew_max": f"{ew:.3g}",
                 "newton_pc_fieldsplit_schur_fact_type":

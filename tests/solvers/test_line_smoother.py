@@ -268,22 +268,26 @@ def test_q2p1_u_block_takes_lines_only_on_a_thin_body(plate):
 
 
 @skip_in_parallel
-def test_thin_rubber_plate_forcing_terms():
-    """A q2p1 plate 3 x 1 x 0.03 of aspect-10 cells at nu = 0.49, Nd 1 (every vertex on a
-    line: Multigrid.thin): the split's forcing terms are capped at mixed.EW_THIN and it
-    converges within 10 Newton steps (measured 7); with the split's cap alone (0.01, given)
-    it takes more than 30 (measured 65)."""
+@pytest.mark.parametrize("element", ["q2p1", "bbar"])
+def test_thin_rubber_plate_forcing_terms(element):
+    """A plate 3 x 1 x 0.03 of aspect-10 cells at nu = 0.49, Nd 1 (every vertex on a line:
+    mixed.Split.thin; q2p1 from its multigrid, bbar, which has none here, from its mesh):
+    the split's forcing terms are capped at mixed.EW_THIN and it converges within 10
+    Newton steps (measured 7 and 7); with the split's cap alone (0.01, given) it takes more
+    than 30 (measured 65 and 62)."""
     def plate(extra):
         sc = paper_scene(nd=1, mode="newton")
-        sc["mesh"].update(upper=[3.0, 1.0, 0.03], cells_per_nd=[10, 3, 1], element="q2p1")
+        sc["mesh"].update(upper=[3.0, 1.0, 0.03], cells_per_nd=[10, 3, 1], element=element)
         sc["boundary"]["top"]["plane"][1] = 0.03
         sc["material"]["poisson"] = 0.49
         with options.inserted(extra):
             return solve(scenes.validate(sc))
 
     pr = plate({})
-    assert pr.solvers.multigrid.thin and pr.inner.split is not None
-    assert pr.inner.split.newton_defaults()["newton_ew_max"] == f"{mixed.EW_THIN:.3g}"
+    split = pr.inner.split
+    assert split is not None and split.thin
+    assert (split.mg is None) == (element == "bbar")
+    assert split.newton_defaults()["newton_ew_max"] == f"{mixed.EW_THIN:.3g}"
     assert pr.converged and pr.inner.iterations <= 10, pr.inner.iterations
     try:
         loose = plate({"newton_ew_max": "0.01"}).inner.iterations
