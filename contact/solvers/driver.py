@@ -146,10 +146,10 @@ def newton_defaults(split, mg, disc=None):
     young = [float(m["young"]) for m, _ in mats]
     rubber = any(e in fem.PRESSURES and fem.lame(m["young"], m["poisson"])[0] > LAMBDA_SPLIT *
                  fem.lame(m["young"], m["poisson"])[1] for m, e in mats)
-    cap = min(EW_CONTRAST, max(EW_FLOOR, EW_RATIO * min(young) / max(young))) \
-        if young else None
-    contrast = {"newton_ew_max": f"{cap:.3g}"} \
-        if young and (max(young) >= CONTRAST * min(young) or rubber) else {}
+    contrast = {}
+    if young and (max(young) >= CONTRAST * min(young) or rubber):
+        cap = min(EW_CONTRAST, max(EW_FLOOR, EW_RATIO * min(young) / max(young)))
+        contrast = {"newton_ew_max": f"{cap:.3g}"}
     for part in ({} if split is None else split.newton_defaults(), contrast):
         for k, v in part.items():
             out[k] = v if k not in out else str(min(float(v), float(out[k])))
