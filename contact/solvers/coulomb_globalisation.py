@@ -55,6 +55,15 @@ CYCLE_RTOL = 1e-10
 #: a Newton loop whose iterative linear solves failed at this many steps in a row (each
 #: then solved directly: fall_back_direct) solves the rest of its steps directly
 DIRECT_STREAK = 2
+#: the Eisenstat-Walker forcing terms are at least EW_FINAL x the final tolerance over the
+#: residual (no need to solve below it; Kelley's safeguard has 0.5). At 0.5 a last step
+#: often ended just above the tolerance (Hertz q2p1, nu = 0.4999, nd 3: 1.1e-11 against
+#: 1e-11) and took one step more (34 Krylov iterations there). 0.5 -> 0.1 on the stability
+#: groups fgrid, newton, plates, rubber and bodies (300 rows, 1 rank; 2026-12-06,
+#: runs/results/stability-notes.md): 18 of 2271 Newton steps fewer, 1 more; Krylov
+#: iterations -1.3 % (rubber) to +4.4 % (bodies), +1.3 % in all. Hertz's target-3 rows
+#: (issue 45) within 2x of q2's Krylov iterations then
+EW_FINAL = 0.1
 
 
 def iterate(nt, x):
@@ -338,7 +347,7 @@ def stage(nt, x, scale, it):
             elif not nt.ew:
                 eta = nt.ksp_rtol
             if nt.ew:                 # no need to solve below the final tolerance
-                eta = min(max(eta, 0.5 * nt._rtol * scale / nr), ew_max)
+                eta = min(max(eta, EW_FINAL * nt._rtol * scale / nr), ew_max)
             K, rhs = nt._system(nt.step_sets(st), glued and it == first)
             if not nt._linear_solve(K, rhs, eta):
                 if kw > 0:
