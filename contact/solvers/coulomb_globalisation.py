@@ -61,8 +61,8 @@ DIRECT_STREAK = 2
 #: 1e-11) and took one step more (34 Krylov iterations there). 0.5 -> 0.1 on the stability
 #: groups fgrid, newton, plates, rubber and bodies (300 rows, 1 rank; 2026-12-06,
 #: runs/results/stability-notes.md): 18 of 2271 Newton steps fewer, 1 more; Krylov
-#: iterations -1.3 % (rubber) to +4.4 % (bodies), +1.3 % in all. Hertz's target-3 rows
-#: (issue 45) within 2x of q2's Krylov iterations then
+#: iterations -1.3 % (rubber) to +4.4 % (bodies), +1.3 % in all; Hertz with q2p1 at
+#: nu = 0.4999, nd 2 and 3, within 2x of q2's Krylov iterations at 0.3 (issue 45, target 3)
 EW_FINAL = 0.1
 
 
