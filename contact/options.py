@@ -197,13 +197,13 @@ REGISTRY = [
            "invert straight lines of nodes joined by cell edges shorter than the cell's "
            "longest / R (contact/solvers/line_smoother.py; not with GPU Vec types); 0: "
            "point-block Jacobi everywhere", "R"),
-    Option("newton_pressure_split", "auto", str, "the linear solves of a nearly "
-           "incompressible B-bar body (nu > 0.4; the Newton steps', and without contact "
-           "the -elastic_ one): auto, GMRES on the mixed u-p system with a Schur "
-           "fieldsplit (-newton_fieldsplit_u_*, -newton_fieldsplit_p_*, "
-           "-newton_pc_fieldsplit_*; -newton_ew_max 0.01), which converges at nu = 0.4999 "
-           "where GAMG on the condensed stiffness does not; off, the solves of the "
-           "condensed stiffness", "auto|off"),
+    Option("newton_pressure_split", "auto", str, "the linear solves of nearly "
+           "incompressible bbar or q2p1 bodies (nu > 0.4; several: on meshes of levels; the "
+           "Newton steps', and without contact the -elastic_ one): auto, GMRES on the mixed "
+           "u-p system with a Schur fieldsplit (-newton_fieldsplit_u_*, "
+           "-newton_fieldsplit_p_*, -newton_pc_fieldsplit_*; -newton_ew_max 0.01), which "
+           "converges at nu = 0.4999 where GAMG on the condensed stiffness does not; off, "
+           "the solves of the condensed stiffness", "auto|off"),
     Option("newton_jacobian", "auto", str, "where the Newton Jacobian lives: inplace, A "
            "itself with its contact rows changed each step (no second matrix); separate, "
            "K = A + D in a matrix of its own, D (the contact rows' change) added and taken "

@@ -8,8 +8,9 @@ from petsc4py import PETSc
 
 from contact import options
 from contact.fem import stencil
-from contact.fem.element import (OCTANT_NODES, chunk, element_stiffness, element_volume_weights,
-                                  geometry, lame, nodal_face_weights, projected_divergence)
+from contact.fem.element import (OCTANT_NODES, PRESSURES, chunk, element_stiffness,
+                                  element_volume_weights, geometry, lame, nodal_face_weights,
+                                  projected_divergence)
 
 #: the elements of 8 nodes (on a q2 mesh: its elements' eighths, _groups)
 LINEAR = ("q1", "bbar")
@@ -256,46 +257,62 @@ def assemble_diagonal(dm, conn, coords, lam, mu, frame=None, element="q1"):
     return local_to_global(dm, diag.ravel())
 
 
-def assemble_divergence(A, conn, coords, m, frame=None, free=None):
-    """Gq (m local elements x A's columns, AIJ): the rows of element e are M_e^-1/2 D_e of
-    projected_divergence (m = 1: int_e div u / |e|^1/2; m = 4: the P1 pressure's), in the
-    contact frame's basis when one is given; and the local elements' volumes, repeated m
-    times (one per row). Rows: the ranks' elements in order (rank r's after rank r-1's).
+def assemble_divergence(A, parts, coords, frame=None, free=None):
+    """Gq (sum of m x the local elements of each part, x A's columns; AIJ): the rows of an
+    element e of a part (cells, m) are M_e^-1/2 D_e of projected_divergence (m = 1:
+    int_e div u / |e|^1/2; m = 4: the P1 pressure's), in the contact frame's basis when one
+    is given; and the local elements' volumes, repeated m times (one per row). Rows: the
+    ranks' elements in order (rank r's after rank r-1's), each rank's parts in order.
     free: a local (owned + ghost) dof array, 0 at the clamped dofs, whose entries are then
     0 (kept in the pattern)."""
-    nc, a = conn.shape
+    a = max(c.shape[1] for c, _ in parts)
+    n_rows = sum(m * c.shape[0] for c, m in parts)
     comm = A.getComm()
     n_local = A.getLocalSize()[1]
     G = PETSc.Mat().create(comm=comm)
-    G.setSizes(((m * nc, PETSc.DETERMINE), (n_local, PETSc.DETERMINE)))
+    G.setSizes(((n_rows, PETSc.DETERMINE), (n_local, PETSc.DETERMINE)))
     G.setType(PETSc.Mat.Type.AIJ)
     G.setBlockSizes(1, 3)                        # columns: A's (its LGMap's blocks)
     G.setPreallocationNNZ((3 * a, 3 * a))
-    start = comm.tompi4py().exscan(m * nc) or 0
-    rmap = PETSc.LGMap().create(np.arange(start, start + m * nc, dtype=PETSc.IntType),
+    start = comm.tompi4py().exscan(n_rows) or 0
+    rmap = PETSc.LGMap().create(np.arange(start, start + n_rows, dtype=PETSc.IntType),
                                 comm=comm)
     G.setLGMap(rmap, A.getLGMap()[1])
-    vol = np.zeros(nc)
+    vol, row0 = [], 0
     idx_type = PETSc.IntType
-    step = chunk(conn)
-    for s in range(0, nc, step):
-        c = conn[s:s + step]
-        X = coords[c]
-        dNdx, wdet = geometry(X)
-        g = projected_divergence(X, dNdx, wdet, m)                     # (n, m, a, 3)
-        vol[s:s + step] = wdet.sum(axis=1)
-        if frame is not None:
-            T = np.where(frame.local_mask[c][:, :, None, None], frame.Q, np.eye(3))
-            g = np.einsum("naij,nmaj->nmai", T, g)
-        cols = (3 * c[:, :, None] + np.arange(3)).reshape(c.shape[0], 3 * a).astype(idx_type)
-        g = g.reshape(c.shape[0], m, 3 * a)
-        if free is not None:
-            g = g * free[cols][:, None, :]
-        rows = (m * s + np.arange(m * c.shape[0])).astype(idx_type).reshape(-1, m)
-        G.setValuesLocalRCV(rows, cols, g, addv=PETSc.InsertMode.INSERT_VALUES)
+    for conn, m in parts:
+        nc, a = conn.shape
+        v = np.zeros(nc)
+        step = chunk(conn)
+        for s in range(0, nc, step):
+            c = conn[s:s + step]
+            X = coords[c]
+            dNdx, wdet = geometry(X)
+            g = projected_divergence(X, dNdx, wdet, m)                     # (n, m, a, 3)
+            v[s:s + step] = wdet.sum(axis=1)
+            if frame is not None:
+                T = np.where(frame.local_mask[c][:, :, None, None], frame.Q, np.eye(3))
+                g = np.einsum("naij,nmaj->nmai", T, g)
+            cols = (3 * c[:, :, None] + np.arange(3)).reshape(c.shape[0], 3 * a).astype(
+                idx_type)
+            g = g.reshape(c.shape[0], m, 3 * a)
+            if free is not None:
+                g = g * free[cols][:, None, :]
+            rows = (row0 + m * s + np.arange(m * c.shape[0])).astype(idx_type).reshape(-1, m)
+            G.setValuesLocalRCV(rows, cols, g, addv=PETSc.InsertMode.INSERT_VALUES)
+        vol.append(np.repeat(v, m))
+        row0 += m * nc
     G.assemble()
     rmap.destroy()
-    return G, np.repeat(vol, m)
+    return G, np.concatenate(vol)
+
+
+def pressure_parts(conn, groups):
+    """The parts (cells, m) of assemble_divergence for the groups [(cells, young, poisson,
+    element)] of an element with a condensed pressure (PRESSURES: m functions a cell; bbar
+    on a q2 mesh's elements as their eighths, _groups)."""
+    return [(c, PRESSURES[e]) for c, _, _, e in _groups(conn, 0.0, 0.0, None, groups)
+            if e in PRESSURES]
 
 
 def local_to_global(dm, local_array, gvec=None):

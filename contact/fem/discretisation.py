@@ -92,13 +92,13 @@ def q1_beside_q2(disc):
     return els, True, linear, roles
 
 
-def capped_groups(groups):
+def capped_groups(groups, cap=RHO_LAMBDA_CAP):
     """groups' (Discretisation.materials) with each body of a condensed pressure (bbar,
-    q2p1) and lambda > RHO_LAMBDA_CAP mu at lambda = RHO_LAMBDA_CAP mu, its mu kept (as
-    (young, poisson)); None where there is none."""
-    nu = RHO_LAMBDA_CAP / (2.0 * (RHO_LAMBDA_CAP + 1.0))         # lambda / mu = the cap
+    q2p1) and lambda > cap mu at lambda = cap mu, its mu kept (as (young, poisson)); None
+    where there is none. (cap: RHO_LAMBDA_CAP, or the mixed split's LAMBDA_SPLIT.)"""
+    nu = cap / (2.0 * (cap + 1.0))                               # lambda / mu = the cap
     out = [(c, 2.0 * (1.0 + nu) * fem.lame(y, p)[1], nu, el)
-           if el in fem.PRESSURES and fem.lame(y, p)[0] > RHO_LAMBDA_CAP * fem.lame(y, p)[1]
+           if el in fem.PRESSURES and fem.lame(y, p)[0] > cap * fem.lame(y, p)[1]
            else (c, y, p, el) for c, y, p, el in groups]
     return None if all(a[1:] == b[1:] for a, b in zip(out, groups)) else out
 

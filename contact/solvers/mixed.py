@@ -44,6 +44,22 @@ without contact (the beam, N = 4, rtol 1e-10) 21, 26, 32, 40 at nu = 0.45,
 0.49, 0.4999, 0.499999 (CG + multigrid at nu = 0.3: 10); with GAMG on A_g instead of the
 multigrid 68, 78, 111, 125.
 
+Several bodies (a scene's `bodies:`): the split takes each bbar or q2p1 body with
+lambda > LAMBDA_SPLIT mu; A_g is the whole stiffness with those bodies at lambda_g and the
+others as they are (fem/discretisation.py capped_groups), in the contact pairs' basis
+(A~ = Z^T A Z, fem/pairs.py), and Gq holds their cells' rows, turned: Gq Z. The u-block's
+multigrid is the problem's, whose first coarse operator is rediscretised with the full
+lambda: its coarse operators are formed here instead, Galerkin products of A_g
+(coarse_operators). On a mesh of one level there is no split for bodies (GAMG on A_g:
+gasket.yaml, bbar at nu = 0.4999, Nd 1, 643 Krylov iterations against 154 on K).
+gasket.yaml at nu = 0.4999 (rubber 2.1e4 times softer than the steel around it), 1 rank,
+Newton steps / Krylov iterations / solve s on K -> with the split (the forcing terms
+capped 10x tighter: driver.EW_SPLIT): bbar Nd 2 5 / 1219 / 0.5 -> 5 / 116 / 0.1, Nd 4
+6 / 1899 / 10.6 -> 7 / 201 / 2.6; q2p1 Nd 2 6 / 1010 / 11.3 -> 6 / 164 / 1.5, Nd 3
+6 / 324 / 14.4 -> 6 / 175 / 5.9, Nd 4 9 / 919 / 83.7 -> 14 / 424 / 31.7 (2 ranks 8 / 815 /
+39.8 -> 7 / 151 / 7.9); and closer to exact Newton steps (LU): the force of q2p1 at Nd 3
+1e-7 off on K, 5e-12 with the split (runs/results/two-bodies-lockfree.md).
+
 LAMBDA_SPLIT = 4 (nu = 0.4, where -element auto leaves q1) was the best of 0 ... 60 on
 Hertz at nd = 5, nu = 0.4999, one linear solve: 478, 374, 306, 293, 286, 321, 381 GMRES
 iterations at lambda_g / mu = 0, 0.5, 1.5, 4, 10, 25, 60 (GAMG on K alone: no convergence
@@ -54,6 +70,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from contact import fem, options, petsc_compat
+from contact.fem.discretisation import capped_groups
 from contact.solvers import line_smoother, multigrid
 
 #: lambda_g = LAMBDA_SPLIT mu: the volumetric stiffness left in the u-block (nu = 0.4)
@@ -146,11 +163,24 @@ def _scale_rows(M, values):
     s.destroy()
 
 
+def _fill_diagonal(M):
+    """M's zero diagonal entries (in its pattern) set to the mean of its diagonal."""
+    d = M.getDiagonal()
+    a = d.getArray()
+    zero = a == 0.0
+    if M.getComm().tompi4py().allreduce(int(zero.sum())):
+        a[zero] = d.sum() / d.getSize()
+        M.setDiagonal(d)
+    d.destroy()
+
+
 class Split:
     """A_g, R Gq, Gq^T (clamped rows / columns eliminated as A's), -Cq and S_p of a
-    discretisation (module docstring); M, the mixed operator [[A_g, Gq^T], [R Gq, -Cq]]."""
+    discretisation (module docstring); M, the mixed operator [[A_g, Gq^T], [R Gq, -Cq]].
+    rubber: the bodies split, [(their group of Discretisation.materials, or None for one
+    body; lambda; mu; element)] (split_for)."""
 
-    def __init__(self, disc, lam, mu, mg=None):
+    def __init__(self, disc, rubber, mg=None):
         comm = disc.A.getComm()
         #: the u-block's preconditioner: geometric multigrid on the mesh hierarchy (that of
         #: A's solves: linear.py), or GAMG on a mesh of one level (None)
@@ -159,8 +189,10 @@ class Split:
         self.thin = mg.thin if mg is not None else line_smoother.thin(
             disc.level, options.get("multigrid_line_ratio"), multigrid.THIN_SHARE)
         mat = disc.scene["material"]
-        self.lam_mu = lam / mu
-        self.element = disc.element
+        #: the split bodies' largest lambda / mu, and their element (several: q2p1 where
+        #: one is, for its u-block smoothing, else bbar)
+        self.lam_mu = max(lam / mu for _, lam, mu, _ in rubber)
+        self.element = "q2p1" if any(e == "q2p1" for *_, e in rubber) else "bbar"
         #: the u-block smoothed by SOR (SOR_ELEMENTS; not with GPU Vecs: Chebyshev there,
         #: and the rest as for bbar: with Chebyshev the lower factorisation took 830 Krylov
         #: iterations on Hertz nd 3, full's 261 before SOR)
@@ -171,12 +203,29 @@ class Split:
         #: A_g as BAIJ where SOR smooths it on the hierarchy (blocked_u): its coarse levels
         #: then Galerkin products of an AIJ copy (coarse_operators)
         self.blocked = self.sor and mg is not None and blocked_u()
+        #: the u-block's coarse operators formed by coarse_operators, not PETSc's Galerkin
+        #: set-up: a BAIJ A_g's, and those of a rediscretised multigrid (several bodies),
+        #: whose finest interpolation is zero on the coarse clamped columns
+        self.own_coarse = self.blocked or (mg is not None and mg.rediscretised)
         self._coarse = {}                        # u-block KSP handle: its coarse Mats
-        lam_g = LAMBDA_SPLIT * mu
-        self.kappa = lam - lam_g
-        Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
-                                    mat["poisson"], frame=disc.frame, element=disc.element,
-                                    lam=lam_g, lattice=disc.lattice, blocked=self.blocked)
+        if disc.bodies is None:
+            _, lam, mu, _ = rubber[0]
+            Ag = fem.assemble_stiffness(disc.dm, disc.elements, disc.coords, mat["young"],
+                                        mat["poisson"], frame=disc.frame,
+                                        element=disc.element, lam=LAMBDA_SPLIT * mu,
+                                        lattice=disc.lattice, blocked=self.blocked)
+            parts = [(disc.elements, fem.PRESSURES[disc.element])]
+        else:                # each split body at lambda_g, in the pair's basis (A's)
+            Ag = fem.assemble_stiffness(
+                disc.dm, disc.elements, disc.coords, mat["young"], mat["poisson"],
+                frame=disc.frame, blocked=self.blocked, pair=disc.pair,
+                groups=capped_groups(disc.materials(), LAMBDA_SPLIT) or disc.materials())
+            parts = fem.pressure_parts(disc.elements, [g for g, *_ in rubber])
+        # kappa = lambda - lambda_g and lambda_g + 2 mu on each pressure row
+        kappa, stiff = (np.concatenate([np.full(m * c.shape[0], f(lam, mu))
+                                        for (c, m), (_, lam, mu, _) in zip(parts, rubber)])
+                        for f in (lambda lam, mu: lam - LAMBDA_SPLIT * mu,
+                                  lambda lam, mu: (LAMBDA_SPLIT + 2.0) * mu))
         b = Ag.createVecLeft()
         b.set(0.0)
         # A_g's own mean diagonal on the eliminated rows (A's, ~ lambda, would be up to
@@ -184,24 +233,34 @@ class Split:
         # Dirichlet rows of the contact nodes take it too (coulomb.py)
         self.diag_scale = fem.eliminate_dirichlet(Ag, b, disc.clamped)
         b.destroy()
-        fem.configure_elasticity(Ag, disc.coordinates, disc.frame)
+        self._ns = fem.configure_elasticity(Ag, disc.coordinates, disc.frame,
+                                            near_nullspace=disc.pair is None)
+        if disc.pair is not None:                  # each body's rigid modes (GAMG's)
+            masks = disc.body_masks()
+            self._ns = disc.pair.rigid_body_nullspace(disc.coordinates, masks)
+            Ag.setNearNullSpace(self._ns)
+            for v in masks:
+                v.destroy()
         free = Ag.createVecRight()                 # clamped dofs: no divergence, no
         free.set(1.0)                              # pressure force
         free.setValues(disc.clamped, np.zeros(len(disc.clamped)))
         free.assemble()
         lfree = disc.dm.getLocalVec()
         disc.dm.globalToLocal(free, lfree)
-        G, vol = fem.assemble_divergence(Ag, disc.elements, disc.coords,   # Gq
-                                         fem.PRESSURES[disc.element], disc.frame,
+        G, vol = fem.assemble_divergence(Ag, parts, disc.coords, disc.frame,   # Gq
                                          lfree.getArray(readonly=True).copy())
         disc.dm.restoreLocalVec(lfree)
         free.destroy()
+        if disc.pair is not None:                  # Gq Z: u = Z u~ (fem/pairs.py)
+            Gz = G.matMult(disc.pair.Z)
+            G.destroy()
+            G = Gz
         Gt = G.transpose(PETSc.Mat())              # (no argument: in place)
         cq = vol ** (1.0 / 6.0)
-        _scale_rows(G, self.kappa * cq)            # R Gq
-        self.Ag, self.G, self.Gt, self.vol = Ag, G, Gt, vol
+        _scale_rows(G, kappa * cq)                 # R Gq
+        self.Ag, self.G, self.Gt, self.vol, self.kappa = Ag, G, Gt, vol, kappa
         self.C = _diagonal(comm, -cq)
-        self.Sp = _diagonal(comm, -cq * (1.0 + self.kappa / (lam_g + 2.0 * mu)))
+        self.Sp = _diagonal(comm, -cq * (1.0 + kappa / stiff))
         self.M = PETSc.Mat().createNest([[Ag, Gt], [G, self.C]], comm=comm)
         self.zp, self.p = self.C.createVecLeft(), self.C.createVecLeft()
         self.zp.set(0.0)
@@ -269,20 +328,21 @@ class Split:
         if mg is not None:
             ku = pc.getFieldSplitSubKSP()[0]
             defaults = mg.setup(ku, multigrid.COARSE_LU_MAX_SPLIT, sor=self.sor)
-            if self.blocked:                     # (PETSc 3.18 has no MatPtAP of BAIJ)
+            if self.own_coarse:                  # (PETSc 3.18 has no MatPtAP of BAIJ)
                 defaults = {k: v for k, v in defaults.items() if "galerkin" not in k}
                 defaults[ku.getOptionsPrefix() + "pc_mg_galerkin"] = "none"
             with options.inserted(defaults):
                 ku.setFromOptions()
 
     def coarse_operators(self, ksp, refresh=True):
-        """The coarse levels' operators of ksp's u-block for a BAIJ A_g (blocked; nothing
-        otherwise): Galerkin products P^T A P of an AIJ copy of A_g as it is now (its
-        contact rows too), level by level, the copy then freed, as PETSc's
-        -pc_mg_galerkin would form them at the u-block's set-up; coulomb.py calls this
-        before each fresh set-up of ksp's preconditioner and (refresh False: only where
-        not formed yet) before a solve."""
-        if not self.blocked:
+        """The coarse levels' operators of ksp's u-block (own_coarse; nothing otherwise):
+        Galerkin products P^T A P of an AIJ copy of A_g as it is now (its contact rows
+        too), level by level, the copy then freed, as PETSc's -pc_mg_galerkin would form
+        them at the u-block's set-up; a zero diagonal entry (a coarse clamped dof of a
+        rediscretised multigrid: its row and column are zero) takes the diagonal's mean;
+        coulomb.py calls this before each fresh set-up of ksp's preconditioner and
+        (refresh False: only where not formed yet) before a solve."""
+        if not self.own_coarse:
             return
         ku = ksp.getPC().getFieldSplitSubKSP()[0]
         pc, mats = ku.getPC(), self._coarse.get(ku.handle)
@@ -306,6 +366,8 @@ class Split:
                 op = mats[k]
                 C.copy(op, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
             C.destroy()
+            if self.mg.rediscretised:
+                _fill_diagonal(op)
         A.destroy()
 
     def linear_ksp(self, prefix="elastic_", rtol=1e-10):
@@ -329,6 +391,7 @@ class Split:
 
     def destroy(self):
         for o in (self.M, self.Ag, self.G, self.Gt, self.C, self.Sp, self.zp, self.p,
+                  *([] if self._ns is None else [self._ns]),
                   *(M for mats in self._coarse.values() for M in mats)):
             o.destroy()
 
@@ -344,21 +407,30 @@ def blocked_u():
 
 def split_for(disc, mode="auto", pc_given=False, mg=None):
     """The Split of a discretisation, or None. mode (-newton_pressure_split): auto, a Split
-    for bbar or q2p1 with lambda > LAMBDA_SPLIT mu (nu > 0.4), unless the command line chose the
-    Newton steps' preconditioner (pc_given: -newton_pc_type, e.g. lu, is one for K: a
-    nest cannot be factored); off: None. ValueError for bbar past BBAR_REFUSE_LAMBDA_MU
-    without pc_given."""
+    for the bodies of bbar or q2p1 with lambda > LAMBDA_SPLIT mu (nu > 0.4: one body, or
+    those of several), unless the command line chose the Newton steps' preconditioner
+    (pc_given: -newton_pc_type, e.g. lu, is one for K: a nest cannot be factored); off:
+    None. ValueError for bbar past BBAR_REFUSE_LAMBDA_MU without pc_given."""
     if mode not in ("auto", "off"):
         raise ValueError(f"-newton_pressure_split must be auto or off, got {mode!r}")
     mat = disc.scene["material"]
-    lam, mu = fem.lame(mat["young"], mat["poisson"])
-    if disc.element == "bbar" and lam > BBAR_REFUSE_LAMBDA_MU * mu and not pc_given:
-        raise ValueError(f"-element bbar at nu = {mat['poisson']:.10g} (lambda / mu = "
-                         f"{lam / mu:.1e} > {BBAR_REFUSE_LAMBDA_MU:.0e}): its Q1-P0 pressure is "
-                         f"not inf-sup stable and the iterative solves fail as the mesh "
-                         f"refines; use -element q2p1 (or auto), or a direct solve "
-                         f"(-newton_ksp_type preonly -newton_pc_type lu)")
-    if mode == "off" or pc_given or disc.element not in fem.PRESSURES or \
-            lam <= LAMBDA_SPLIT * mu:
+    groups = [(None, mat["young"], mat["poisson"], disc.element)] if disc.bodies is None \
+        else disc.materials()
+    for _, young, nu, el in groups:
+        lam, mu = fem.lame(young, nu)
+        if el == "bbar" and lam > BBAR_REFUSE_LAMBDA_MU * mu and not pc_given:
+            raise ValueError(f"-element bbar at nu = {nu:.10g} (lambda / mu = "
+                             f"{lam / mu:.1e} > {BBAR_REFUSE_LAMBDA_MU:.0e}): its Q1-P0 "
+                             f"pressure is not inf-sup stable and the iterative solves fail "
+                             f"as the mesh refines; use -element q2p1 (or auto), or a direct "
+                             f"solve (-newton_ksp_type preonly -newton_pc_type lu)")
+    rubber = [(g if disc.bodies is not None else None, *fem.lame(g[1], g[2]), g[3])
+              for g in groups if g[3] in fem.PRESSURES]
+    # (nu = 0.4, -element auto's bbar from there, gives lambda = 4 mu (1 + 5e-16): no split)
+    rubber = [r for r in rubber if r[1] > LAMBDA_SPLIT * r[2] * (1.0 + 1e-9)]
+    # several bodies on a mesh of one level (GAMG on A_g): gasket.yaml, bbar at
+    # nu = 0.4999, Nd 1, 643 Krylov iterations against 154 on K (Nd 2, multigrid: 120
+    # against 1219)
+    if mode == "off" or pc_given or not rubber or (disc.bodies is not None and mg is None):
         return None
-    return Split(disc, lam, mu, mg)
+    return Split(disc, rubber, mg)
