@@ -198,8 +198,8 @@ REGISTRY = [
            "longest / R (contact/solvers/line_smoother.py; not with GPU Vec types); 0: "
            "point-block Jacobi everywhere", "R"),
     Option("newton_pressure_split", "auto", str, "the linear solves of nearly "
-           "incompressible bbar or q2p1 bodies (nu > 0.4; several: on meshes of levels; the "
-           "Newton steps', and without contact the -elastic_ one): auto, GMRES on the mixed "
+           "incompressible bbar or q2p1 bodies (nu > 0.4, one body or several; the Newton "
+           "steps', and without contact the -elastic_ one): auto, GMRES on the mixed "
            "u-p system with a Schur fieldsplit (-newton_fieldsplit_u_*, "
            "-newton_fieldsplit_p_*, -newton_pc_fieldsplit_*; -newton_ew_max 0.01), which "
            "converges at nu = 0.4999 where GAMG on the condensed stiffness does not; off, "

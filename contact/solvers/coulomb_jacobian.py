@@ -165,7 +165,7 @@ class CoulombJacobian:
     def _padded(self, S, m):
         ia, ja, a = S.getValuesCSR()
         n = np.diff(ia)
-        W = int(n.max()) if n.size else 1
+        W = max(int(n.max()) if n.size else 0, 1)        # (G^T of a master body: none)
         pos = np.arange(ja.size) - np.repeat(ia[:-1], n)
         row = np.repeat(np.arange(n.size), n)
         cols = np.full((3 * m, W), -1, dtype=PETSc.IntType)
