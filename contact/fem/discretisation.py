@@ -248,8 +248,7 @@ class Discretisation:
                                                   near_nullspace=not blocked and
                                                   self.pair is None)
         if self.pair is not None and not blocked:   # each body's, in the pair's basis
-            self.nullspace = self.pair.rigid_body_nullspace(self.coordinates,
-                                                            self.body_masks())
+            self.nullspace = self.pair_nullspace()
             self.A.setNearNullSpace(self.nullspace)
         self.n_dofs = self.A.getSize()[0]
 
@@ -280,6 +279,14 @@ class Discretisation:
             out += i * g.getArray(readonly=True)[::3]
             g.destroy()
         return out
+
+    def pair_nullspace(self):
+        """Each body's rigid modes in the pair's basis (a new NullSpace: GAMG's)."""
+        masks = self.body_masks()
+        ns = self.pair.rigid_body_nullspace(self.coordinates, masks)
+        for v in masks:
+            v.destroy()
+        return ns
 
     def body_masks(self):
         """A Vec per body, 1 on its dofs."""

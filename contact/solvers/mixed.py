@@ -223,11 +223,10 @@ class Split:
                 frame=disc.frame, blocked=self.blocked, pair=disc.pair,
                 groups=capped_groups(disc.materials(), LAMBDA_SPLIT) or disc.materials())
             parts = fem.pressure_parts(disc.elements, [g for g, *_ in rubber])
-        # kappa = lambda - lambda_g and lambda_g + 2 mu on each pressure row
-        kappa, stiff = (np.concatenate([np.full(m * c.shape[0], f(lam, mu))
-                                        for (c, m), (_, lam, mu, _) in zip(parts, rubber)])
-                        for f in (lambda lam, mu: lam - LAMBDA_SPLIT * mu,
-                                  lambda lam, mu: (LAMBDA_SPLIT + 2.0) * mu))
+        # each pressure row's body's lambda and mu
+        lam, mu = (np.repeat([r[k] for r in rubber], [m * c.shape[0] for c, m in parts])
+                   for k in (1, 2))
+        kappa = lam - LAMBDA_SPLIT * mu
         b = Ag.createVecLeft()
         b.set(0.0)
         # A_g's own mean diagonal on the eliminated rows (A's, ~ lambda, would be up to
@@ -238,11 +237,8 @@ class Split:
         self._ns = fem.configure_elasticity(Ag, disc.coordinates, disc.frame,
                                             near_nullspace=disc.pair is None)
         if disc.pair is not None:                  # each body's rigid modes (GAMG's)
-            masks = disc.body_masks()
-            self._ns = disc.pair.rigid_body_nullspace(disc.coordinates, masks)
+            self._ns = disc.pair_nullspace()
             Ag.setNearNullSpace(self._ns)
-            for v in masks:
-                v.destroy()
         free = Ag.createVecRight()                 # clamped dofs: no divergence, no
         free.set(1.0)                              # pressure force
         free.setValues(disc.clamped, np.zeros(len(disc.clamped)))
@@ -262,7 +258,7 @@ class Split:
         _scale_rows(G, kappa * cq)                 # R Gq
         self.Ag, self.G, self.Gt, self.vol, self.kappa = Ag, G, Gt, vol, kappa
         self.C = _diagonal(comm, -cq)
-        self.Sp = _diagonal(comm, -cq * (1.0 + kappa / stiff))
+        self.Sp = _diagonal(comm, -cq * (1.0 + kappa / ((LAMBDA_SPLIT + 2.0) * mu)))
         self.M = PETSc.Mat().createNest([[Ag, Gt], [G, self.C]], comm=comm)
         self.zp, self.p = self.C.createVecLeft(), self.C.createVecLeft()
         self.zp.set(0.0)
@@ -418,18 +414,18 @@ def split_for(disc, mode="auto", pc_given=False, mg=None):
     mat = disc.scene["material"]
     groups = [(None, mat["young"], mat["poisson"], disc.element)] if disc.bodies is None \
         else disc.materials()
-    for _, young, nu, el in groups:
-        lam, mu = fem.lame(young, nu)
+    rubber = []
+    for g in groups:
+        (_, young, nu, el), (lam, mu) = g, fem.lame(g[1], g[2])
         if el == "bbar" and lam > BBAR_REFUSE_LAMBDA_MU * mu and not pc_given:
             raise ValueError(f"-element bbar at nu = {nu:.10g} (lambda / mu = "
                              f"{lam / mu:.1e} > {BBAR_REFUSE_LAMBDA_MU:.0e}): its Q1-P0 "
                              f"pressure is not inf-sup stable and the iterative solves fail "
                              f"as the mesh refines; use -element q2p1 (or auto), or a direct "
                              f"solve (-newton_ksp_type preonly -newton_pc_type lu)")
-    rubber = [(g if disc.bodies is not None else None, *fem.lame(g[1], g[2]), g[3])
-              for g in groups if g[3] in fem.PRESSURES]
-    # (nu = 0.4, -element auto's bbar from there, gives lambda = 4 mu (1 + 5e-16): no split)
-    rubber = [r for r in rubber if r[1] > LAMBDA_SPLIT * r[2] * (1.0 + 1e-9)]
+        # (nu = 0.4, -element auto's bbar from there, gives lambda = 4 mu (1 + 5e-16))
+        if el in fem.PRESSURES and lam > LAMBDA_SPLIT * mu * (1.0 + 1e-9):
+            rubber.append((g if disc.bodies is not None else None, lam, mu, el))
     if mode == "off" or pc_given or not rubber:
         return None
     return Split(disc, rubber, mg)
