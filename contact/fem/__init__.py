@@ -14,6 +14,7 @@ from contact.fem.assembly import (PATTERN_CHUNK, create_matrix, assemble_stiffne
                                   load_vector, global_coordinates, dirichlet_rows,
                                   dirichlet_values, face_normals, eliminate_dirichlet,
                                   configure_elasticity, is_blocked, set_spd)
+from contact.fem.rows import eliminated_difference, rows_of
 from contact.fem.rigid import (RIGID_MODES, rigid_modes, free_rigid_modes, tangential_modes,
                                free_translations, load_lifts_off)
 
@@ -27,4 +28,5 @@ __all__ = ["ELEMENTS", "CHUNK", "chunk", "lame", "q2_shape",
            "global_coordinates", "dirichlet_rows", "dirichlet_values", "face_normals",
            "RIGID_MODES", "rigid_modes", "free_rigid_modes", "tangential_modes",
            "free_translations", "load_lifts_off", "eliminate_dirichlet",
+           "eliminated_difference", "rows_of",
            "configure_elasticity", "is_blocked", "set_spd"]

@@ -25,33 +25,6 @@ SAME = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
 _EV_MAT = PETSc.Log.Event("Newton assemble")
 
 
-def _rows_of(M, rows):
-    """The owned rows `rows` of M (whole nodes' blocks, in any order) as an AIJ Mat whose
-    rows are in that order, all columns (block index sets: a BAIJ M takes no other)."""
-    comm = M.getComm()
-    nodes = np.unique(rows // 3).astype(PETSc.IntType)
-    c0, c1 = M.getOwnershipRangeColumn()
-    isr = PETSc.IS().createBlock(3, nodes, comm=comm)
-    isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=comm)
-    blocked = fem.is_blocked(M)
-    if blocked:
-        isc.setBlockSize(3)
-    B = M.createSubMatrix(isr, isc)             # rows node by node
-    isr.destroy()
-    isc.destroy()
-    if blocked:
-        B = B.convert(PETSc.Mat.Type.AIJ)        # in place
-    b0 = B.getOwnershipRange()[0]
-    order = b0 + 3 * np.searchsorted(nodes, rows // 3) + rows % 3
-    isr = PETSc.IS().createGeneral(order.astype(PETSc.IntType), comm=comm)
-    c0, c1 = B.getOwnershipRangeColumn()
-    isc = PETSc.IS().createStride(c1 - c0, c0, 1, comm=comm)
-    S = B.createSubMatrix(isr, isc)
-    for obj in (isr, isc, B):
-        obj.destroy()
-    return S
-
-
 def _pattern_matrix(A, rows, cols):
     """An AIJ Mat shaped as A, holding (zeros at) the padded columns cols (k, W) of the
     owned rows `rows` (k,), its pattern fixed."""
@@ -148,7 +121,7 @@ class CoulombJacobian:
         self.rows = rows
         self.padded = []
         for M in [self.A] + [M for M in self.mats if M is not self.A]:   # A first, once
-            S = _rows_of(M, rows)
+            S = fem.rows_of(M, rows)
             if M is self.A:
                 self.S, self.ys = S, S.createVecLeft()     # R at the contact rows: S x - b
             if any(M is N for N in self.mats):

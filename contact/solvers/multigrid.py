@@ -142,7 +142,7 @@ class Multigrid:
         self._rediscretise = rediscretise
         self.coarse = self._free_c = None  # A_c (AIJ), and 0 at its clamped dofs, else 1
         self._C = None                   # P^T D P (D: the Jacobian's change), kept for reuse
-        self._added = False              # whether A_c holds + P^T D P now
+        self._added = None               # the P^T D P that A_c holds now, or None
         self._products = {}              # level j -> the Galerkin operator there (j < L - 1)
         #: the levels' lines (line_smoother.py) and, where there are any, the cells'
         #: largest aspect (over all ranks)
@@ -268,13 +268,15 @@ class Multigrid:
         prefix = ksp.getOptionsPrefix() or ""
         return {} if self.rediscretised else {prefix + k: v for k, v in DEFAULTS.items()}
 
-    def set_operators(self, ksp, K, D=None):
+    def set_operators(self, ksp, K, D=None, once=False):
         """The level operators of ksp's PCMG for the fine operator K = A + D, before its
         set-up (rediscretised only; nothing for PETSc's Galerkin products or another PC):
         A_c + P^T D P on the first coarse level (D: an AIJ Mat of K - A, nonzero in the
         contact rows only, or None for A itself), Galerkin products below it. The finest
         level's is K also where the Krylov method's operator is K plus a few rows
-        (coulomb_jacobian.py: _hold_slip)."""
+        (coulomb_jacobian.py: _hold_slip). once: D is a one-off (another pattern than the
+        Newton Jacobian's, whose product is kept for reuse: the dual solve of
+        analysis/goal.py), its product freed at release."""
         pc = ksp.getPC()
         if pc.getType() != PETSc.PC.Type.MG:
             return
@@ -283,7 +285,7 @@ class Multigrid:
             return
         self.prepare()
         with options.inserted(GALERKIN if K.getComm().getSize() > 1 else {}):
-            self._correct(D)
+            self._correct(D, once)
             ops = {self.level: K, self.level - 1: self.coarse}
             for j in range(self.level - 1, 0, -1):          # P_j: level j - 1 -> level j
                 prev = self._products.get(j - 1)
@@ -292,19 +294,24 @@ class Multigrid:
         for j in range(self.n_levels - 1, -1, -1):
             pc.getMGSmoother(j).setOperators(ops[j])
 
-    def _correct(self, D):
+    def _correct(self, D, once=False):
         """A_c + P^T D P in place: the last correction taken off (to round-off), the new
-        one added (its product's pattern kept from solve to solve)."""
-        if self._added:
-            self.coarse.axpy(-1.0, self._C, SUBSET)
-            self._added = False
+        one added (its product's pattern kept from solve to solve, but once's)."""
+        if self._added is not None:
+            self.coarse.axpy(-1.0, self._added, SUBSET)
+            if self._added is not self._C:
+                self._added.destroy()
+            self._added = None
         if D is None:
             return
-        widen = self._C is None and self.pair is not None
-        self._C = D.ptap(self.interpolation(self.level), result=self._C)
-        self.coarse.axpy(1.0, self._C, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+        widen = (once or self._C is None) and self.pair is not None
+        if once:
+            C = D.ptap(self.interpolation(self.level))
+        else:
+            C = self._C = D.ptap(self.interpolation(self.level), result=self._C)
+        self.coarse.axpy(1.0, C, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
                          if widen else SUBSET)
-        self._added = True
+        self._added = C
 
     def release(self):
         """After a solve (its KSP reset): A_c as assembled (to round-off) and the Galerkin
@@ -373,10 +380,12 @@ def configure(ksp, mg, default="gamg"):
         ksp.setFromOptions()
 
 
-def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
+def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None, D=None):
     """CG for A, preconditioned by geometric multigrid on the mesh hierarchy (mg, a
     Multigrid) or else GAMG (options prefix `prefix`: the command line wins,
-    -elastic_pc_type gamg included)."""
+    -elastic_pc_type gamg included). D: A's difference from the stiffness mg was made
+    for (fem.eliminated_difference; a rediscretised mg's coarse correction, freed at its
+    release), or None."""
     ksp = PETSc.KSP().create(comm=A.getComm())
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)
@@ -384,5 +393,5 @@ def elasticity_ksp(A, prefix="elastic_", rtol=1e-10, mg=None):
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=10000)
     configure(ksp, mg)
     if mg is not None:
-        mg.set_operators(ksp, A)             # (a rediscretised multigrid's levels)
+        mg.set_operators(ksp, A, D, once=True)   # (a rediscretised multigrid's levels)
     return ksp
