@@ -36,7 +36,8 @@ nodes across the thin direction (line_smoother.py: on a plate of aspect-20 cells
 Krylov iterations stop growing with the aspect, runs/results/bench-thin.md; on graded
 meshes they fall 2-3x); the coarsest
 level is factored (LU, redundant on every rank) up to COARSE_LU_MAX dofs
-(COARSE_LU_MAX_SPLIT in the mixed split's u-block), else solved by one GAMG cycle.
+(COARSE_LU_MAX_SPLIT in the mixed split's u-block, by MUMPS beyond COARSE_MUMPS_MIN), else
+solved by one GAMG cycle.
 
 Measured (runs/results/scaling.md section 8): at Nd = 40 on 2 ranks a CG solve of the beam
 without contact takes 7 iterations and 2.0 s with it, 17 and 9.5 s with GAMG, and half the
@@ -61,6 +62,12 @@ COARSE_LU_MAX = 5000
 #: the inexact coarse solve doubles: Hertz q2p1 nd = 5, nu = 0.4999, 2 ranks, 1066
 #: iterations with the GAMG cycle, 525 with LU, in the same time (132 and 127 s)
 COARSE_LU_MAX_SPLIT = 30000
+#: a coarsest level of more dofs than this (the split's u-block's: COARSE_LU_MAX_SPLIT) is
+#: factored by MUMPS where PETSc has it (Debian's; not our PETSc 3.26 build), on the ranks'
+#: shares, not redundantly by PETSc's own LU: Hertz q2p1 nd = 5, nu = 0.4999, 2 ranks,
+#: its five coarse factorisations 20.4 -> 1.9 s, solve 46.3 -> 27.2 s, the same 441 Krylov
+#: iterations and answer (runs/results/stability-notes.md, 2026-12-07)
+COARSE_MUMPS_MIN = COARSE_LU_MAX
 
 #: Richardson + SOR smoothing (setup's sor): sweeps a smoothing (one symmetric sweep each;
 #: PCMG's default is 2). Hertz q2p1, nu = 0.4999, nd 3, lower Schur factorisation: 175
@@ -263,8 +270,14 @@ class Multigrid:
                 spc.setType(PETSc.PC.Type.SOR)
             else:
                 spc.setType(smoother)
-        if self.hierarchy.levels[0].n_dofs > coarse_lu_max:
-            pc.getMGCoarseSolve().getPC().setType(PETSc.PC.Type.GAMG)
+        n = self.hierarchy.levels[0].n_dofs
+        cpc = pc.getMGCoarseSolve().getPC()
+        if n > coarse_lu_max:
+            cpc.setType(PETSc.PC.Type.GAMG)
+        elif n > COARSE_MUMPS_MIN and PETSc.Sys.hasExternalPackage("mumps") and \
+                not gpu_vecs():
+            cpc.setType(PETSc.PC.Type.LU)            # (on every rank's share: not redundant)
+            cpc.setFactorSolverType("mumps")
         prefix = ksp.getOptionsPrefix() or ""
         return {} if self.rediscretised else {prefix + k: v for k, v in DEFAULTS.items()}
 
