@@ -475,7 +475,7 @@ def part_setup(args, lines):
             s = r.summary
             t = s["time_s"]["setup"]
             ref = ref or t
-            lines.append(f"| {tname} | {pname} | {t:.2f} | {t / ref:.2f} | {r.wall:.1f} | "
+            lines.append(f"| {tname} | {pname} | {t:.3g} | {t / ref:.2f} | {r.wall:.1f} | "
                          f"{s['iterations']['inner_total']} / {s['iterations']['ksp_total']} | "
                          f"{mem(s):.0f} |")
     lines.append("")
