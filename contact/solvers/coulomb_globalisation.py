@@ -49,6 +49,15 @@ CONTINUATION_RTOL = 1e-8
 #: their answer: the locked q1 beam at nu = 0.4999, F = 0.3 (runs/element.py; 22 steps),
 #: runs/stability.py's gap-varying-xy-nd8-F100 (20) and held-nd24-s8-q0.95 (55) failed
 WATCHDOG_RISE = 10.0
+#: the linear solve at a point a full step without decrease led to (the watchdog's, which
+#: goes back to its watch point where that solve fails, with no new solve) stops after this
+#: many Krylov iterations (or -newton_ksp_max_it, the smaller). The plate 3 x 1 x 0.03 of
+#: aspect-33 cells (stability newton-thin-plate-flat, 1 rank) spent 825 iterations on such
+#: a solve and then went back: 1622 -> 286 Krylov iterations, the same 9 steps and answer.
+#: runs/stability.py's groups newton, plates, rubber, fgrid and bodies (318 rows, 1 rank,
+#: 2026-12-07): the same verdicts; plates 345 -> 320 steps, 6062 -> 5550 Krylov (a5-q1-nd3
+#: 30 -> 8 steps; its q2p1 nd 1 39 -> 42), one gasket row +3 % Krylov, the rest as before
+WATCHDOG_KSP_MAX_IT = 100
 #: an exact 2-cycle: the residual norm within this factor of, and the sets equal to, those
 #: of two steps before (two_cycle)
 CYCLE_RTOL = 1e-10
@@ -308,7 +317,8 @@ def stage(nt, x, scale, it):
     decrease). At a friction above -newton_friction_start on a clamped body the
     watchdog bites at once where a full step raises the residual above WATCHDOG_RISE
     times the watch point's. An exact 2-cycle of sets (`two_cycle`) in a stage that
-    climbs gives the nodes their pulls to the slip piece again. The stage has stalled
+    climbs gives the nodes their pulls to the slip piece again. A linear solve beyond a
+    full step without decrease gets WATCHDOG_KSP_MAX_IT iterations. The stage has stalled
     when -newton_stall_its steps have not halved the lowest residual."""
     glued = x.norm() == 0.0
     first = it + 1
@@ -349,7 +359,12 @@ def stage(nt, x, scale, it):
             if nt.ew:                 # no need to solve below the final tolerance
                 eta = min(max(eta, EW_FINAL * nt._rtol * scale / nr), ew_max)
             K, rhs = nt._system(nt.step_sets(st), glued and it == first)
-            if not nt._linear_solve(K, rhs, eta):
+            full = nt.ksp.getTolerances()[3]
+            if kw > 0:           # beyond a full step without decrease: a short solve
+                nt.ksp.setTolerances(max_it=min(full, WATCHDOG_KSP_MAX_IT))
+            ok = nt._linear_solve(K, rhs, eta)
+            nt.ksp.setTolerances(max_it=full)
+            if not ok:
                 if kw > 0:
                     # a full step without decrease led where the Jacobian cannot be
                     # solved: the watchdog bites now (back to the watch point and
