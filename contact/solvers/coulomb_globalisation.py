@@ -362,8 +362,10 @@ def stage(nt, x, scale, it):
             full = nt.ksp.getTolerances()[3]
             if kw > 0:           # beyond a full step without decrease: a short solve
                 nt.ksp.setTolerances(max_it=min(full, WATCHDOG_KSP_MAX_IT))
-            ok = nt._linear_solve(K, rhs, eta)
-            nt.ksp.setTolerances(max_it=full)
+            try:
+                ok = nt._linear_solve(K, rhs, eta)
+            finally:
+                nt.ksp.setTolerances(max_it=full)
             if not ok:
                 if kw > 0:
                     # a full step without decrease led where the Jacobian cannot be

@@ -92,7 +92,6 @@ def test_refused(beam):
         goal.solve_dual(beam, "energy")
 
 
-
 @pytest.mark.parametrize("everywhere", [True, False])
 def test_eliminated_difference_is_zero_rows_columns(beam, everywhere):
     """D = A_e - A, A_e the stiffness (BAIJ) with the held rows and columns eliminated
@@ -104,8 +103,7 @@ def test_eliminated_difference_is_zero_rows_columns(beam, everywhere):
     r0, r1 = A.getOwnershipRange()
     rng = np.random.default_rng(7 + pr.comm.rank)
     k = (r1 - r0) // 10 if everywhere or pr.comm.rank == 0 else 0
-    rows = np.sort(rng.choice(np.arange(r0, r1), size=k, replace=False))
-    rows = rows.astype(PETSc.IntType)
+    rows = np.sort(rng.choice(np.arange(r0, r1), size=k, replace=False)).astype(PETSc.IntType)
     D = fem.eliminated_difference(A, rows, 3.5)
     Ae = A.copy()
     Ae.zeroRowsColumns(rows, diag=3.5)
