@@ -359,13 +359,14 @@ def stage(nt, x, scale, it):
             if nt.ew:                 # no need to solve below the final tolerance
                 eta = min(max(eta, EW_FINAL * nt._rtol * scale / nr), ew_max)
             K, rhs = nt._system(nt.step_sets(st), glued and it == first)
-            full = nt.ksp.getTolerances()[3]
-            if kw > 0:           # beyond a full step without decrease: a short solve
+            full = nt.ksp.getTolerances()[3] if kw > 0 else None
+            if full is not None:  # beyond a full step without decrease: a short solve
                 nt.ksp.setTolerances(max_it=min(full, WATCHDOG_KSP_MAX_IT))
             try:
                 ok = nt._linear_solve(K, rhs, eta)
             finally:
-                nt.ksp.setTolerances(max_it=full)
+                if full is not None:
+                    nt.ksp.setTolerances(max_it=full)
             if not ok:
                 if kw > 0:
                     # a full step without decrease led where the Jacobian cannot be
