@@ -41,6 +41,8 @@ wins). A plate 3 x 1 x 0.03 of aspect-20 cells, q2, Nd = 1: DIVERGED_STAGNATION 
 -newton_ew_max 0.1 (its linear solves reach 0.1 in 1-3 iterations), 7 Newton steps at
 0.005; at Nd = 4 52 steps on the finest level, then 5; runs/results/bench-thin.md.
 """
+import hashlib
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -52,6 +54,9 @@ from contact.mesh.hierarchy import owned_blocks
 EW_ASPECT = 0.1
 #: a line longer than this is cut into pieces (each piece one block of the smoother)
 MAX_LINE_NODES = 64
+#: the smoother reads the operator's block-diagonal entries in submatrices of about this
+#: many rows (BlockPattern)
+CHUNK_ROWS = 30000
 #: an edge joins a line where it lies along its ends' directions: |cos| above this
 ALONG = 0.9
 #: the 12 edges of the hexahedron: vertex pairs (in HEX_REF order) one coordinate apart
@@ -157,12 +162,16 @@ class LineSmoother:
     def _update(self, P, setup):
         """The inverse for P's values: a new Mat where the pattern is new (collective: at
         set-up only), else its values in place."""
-        indptr, cols, vals = _diagonal_block(P).getValuesCSR()     # (BAIJ too)
-        if self.pattern is None or not self.pattern.matches(indptr, cols):
+        D = _diagonal_block(P)
+        vals = self.pattern.read(D) if self.pattern is not None else None
+        if vals is None:                         # the first set-up, or a new pattern
             if not setup:
                 raise RuntimeError("line smoother: the level operator's pattern changed "
                                    "without a set-up")
-            self.pattern = BlockPattern(self.block, indptr, cols)
+            if self.pattern is not None:
+                self.pattern.destroy()
+            self.pattern = BlockPattern(self.block, D)
+            vals = self.pattern.read(D)
             if self.binv is not None:
                 self.binv.destroy()
             n, r0 = self.block.size, P.getOwnershipRange()[0]
@@ -174,7 +183,7 @@ class LineSmoother:
         self._state = P.stateGet()
 
     def _set_values(self, vals):
-        """The inverse's values for the operator's values vals, in place (the rank's own
+        """The inverse's values for the block-diagonal values vals, in place (the rank's own
         diagonal block: local, not collective)."""
         own = _diagonal_block(self.binv)
         own.setValuesCSR(self.pattern.indptr, self.pattern.cols, self.pattern.values(vals))
@@ -189,6 +198,9 @@ class LineSmoother:
         if self.binv is not None:
             self.binv.destroy()
             self.binv = None
+        if self.pattern is not None:
+            self.pattern.destroy()
+            self.pattern = None
 
 
 def _diagonal_block(M):
@@ -200,25 +212,49 @@ class BlockPattern:
     """Where the entries of an operator's block-diagonal part (its rows and columns in one
     block of `block`, each local row's block) go in the dense blocks (those of one size
     stacked: numpy.linalg.inv inverts them together), and the CSR pattern (indptr, cols:
-    local) of the inverse. values(vals) is that inverse's values for the operator's
-    values vals, in CSR order."""
+    local) of the inverse. read(D) gathers those entries' values from D (the rank's
+    diagonal block, sequential), values(vals) is the inverse's values for them, in CSR
+    order.
 
-    def __init__(self, block, indptr, cols):
+    The entries are read chunk by chunk: the submatrix of D on the rows and columns of
+    a run of whole blocks of about CHUNK_ROWS rows (MatCreateSubMatrices), so that no copy
+    of the whole operator is made (reading D's CSR at once took 2.9 times the memory of
+    the run: the q2 beam graded at N 32 ran out of 23 GB; runs/results/line-smoother.md)."""
+
+    def __init__(self, block, D):
         n = block.size
-        self._indptr, self._cols = indptr.copy(), cols.copy()
-        self._last = {}                          # group -> (its blocks, their inverses)
+        self._last = {}                  # group -> (its blocks' values, their inverses)
         block = block.astype(np.int32)
-        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(indptr))
-        inside = np.flatnonzero(block[rows] == block[cols])   # the block-diagonal part
-        rows, cols = rows[inside], cols[inside]
         order = np.argsort(block, kind="stable")              # rows grouped by block
         size = np.bincount(block)
         start = np.concatenate([[0], np.cumsum(size)])
+        # chunks: runs of whole blocks, a new one where CHUNK_ROWS more rows have begun
+        cut = np.flatnonzero(np.diff(start[:-1] // CHUNK_ROWS)) + 1
+        self.chunks = []                         # (IS, pattern digest, in-block entries)
+        rows, cols = [], []
+        for first, last in zip(np.concatenate([[0], cut]), np.concatenate([cut, [size.size]])):
+            sel = np.sort(order[start[first]:start[last]]).astype(PETSc.IntType)
+            iset = PETSc.IS().createGeneral(sel, comm=PETSc.COMM_SELF)
+            sub = D.createSubMatrices([iset], [iset])[0]
+            indptr, c, _ = sub.getValuesCSR()
+            sub.destroy()
+            digest = _digest(indptr, c)
+            r, c = sel[np.repeat(np.arange(sel.size), np.diff(indptr))], sel[c]
+            inside = np.flatnonzero(block[r] == block[c])
+            self.chunks.append((iset, digest, inside))
+            rows.append(r[inside])
+            cols.append(c[inside])
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
         pos = np.empty(n, dtype=np.intp)
         pos[order] = np.arange(n) - start[block[order]]       # a row's place in its block
-        self.groups = []          # (s, nb, entries of vals, their flat places in the stack)
-        first = np.empty(n, dtype=np.int64)      # where row r's inverse row starts there
-        offset = 0
+        # row r of the inverse: its block's rows (in order)
+        width = size[block]
+        self.indptr = np.concatenate([[0], np.cumsum(width)]).astype(PETSc.IntType)
+        self.cols = np.empty(self.indptr[-1], dtype=PETSc.IntType)
+        at = np.int32 if self.indptr[-1] < 2 ** 31 else np.int64
+        #: per size s of blocks: (s, the blocks' count nb, the entries of vals in them, their
+        #: flat places in the stack (nb, s, s), the stack's flat places in the CSR values)
+        self.groups = []
         for s in np.unique(size):
             blocks = np.flatnonzero(size == s)
             index = np.full(size.size, -1, dtype=np.intp)
@@ -226,37 +262,57 @@ class BlockPattern:
             b = index[block[rows]]
             mine = np.flatnonzero(b >= 0)
             places = (b[mine] * s + pos[rows[mine]]) * s + pos[cols[mine]]
-            self.groups.append((s, blocks.size, inside[mine], places))
             its = np.flatnonzero(size[block] == s)            # the rows of these blocks
-            first[its] = offset + (index[block[its]] * s + pos[its]) * s
-            offset += blocks.size * s * s
-        # row r of the inverse: its block's rows (in order), the values at first[r] + j
-        width = size[block]
-        self.indptr = np.concatenate([[0], np.cumsum(width)]).astype(PETSc.IntType)
-        j = np.arange(self.indptr[-1]) - np.repeat(self.indptr[:-1], width)
-        self.order = np.repeat(first, width) + j
-        self.cols = order[np.repeat(start[block], width) + j].astype(PETSc.IntType)
+            j = np.arange(s)
+            csr = (self.indptr[its][:, None] + j).ravel()
+            self.cols[csr] = order[start[block[its]][:, None] + j].ravel()
+            dest = np.empty(blocks.size * s * s, dtype=at)
+            dest[(((index[block[its]] * s + pos[its]) * s)[:, None] + j).ravel()] = csr
+            self.groups.append((s, blocks.size, mine, places, dest))
 
-    def matches(self, indptr, cols):
-        return np.array_equal(indptr, self._indptr) and np.array_equal(cols, self._cols)
+    def read(self, D):
+        """The values of the block-diagonal entries of D (in this pattern's order), or None
+        where D's pattern is not the one this was built for."""
+        out = []
+        for iset, digest, inside in self.chunks:
+            sub = D.createSubMatrices([iset], [iset])[0]
+            indptr, c, vals = sub.getValuesCSR()
+            sub.destroy()
+            if _digest(indptr, c) != digest:
+                return None
+            out.append(vals[inside])
+        return np.concatenate(out)
 
     def values(self, vals):
-        """The inverse's values in CSR order for the operator's values vals (the blocks
-        that did not change since the last call are not inverted again)."""
-        out = []
-        for k, (s, nb, entries, places) in enumerate(self.groups):
-            dense = np.zeros((nb, s, s))
-            dense.reshape(-1)[places] = vals[entries]
+        """The inverse's values in CSR order for the block-diagonal values vals (the blocks
+        whose values did not change since the last call are not inverted again)."""
+        out = np.empty(self.indptr[-1])
+        for k, (s, nb, entries, places, dest) in enumerate(self.groups):
+            mine = vals[entries]
             old, inv = self._last.get(k, (None, None))
-            if old is None:
-                inv = _inverse(dense)
-            else:
-                changed = np.flatnonzero((dense != old).any(axis=(1, 2)))
-                if changed.size:
+            changed = None if old is None else np.unique(places[mine != old] // (s * s))
+            if changed is None or changed.size:
+                dense = np.zeros((nb, s, s))
+                dense.reshape(-1)[places] = mine
+                if changed is None:
+                    inv = _inverse(dense)
+                else:
                     inv[changed] = _inverse(dense[changed])
-            self._last[k] = (dense, inv)
-            out.append(inv.reshape(-1))
-        return np.concatenate(out)[self.order]
+            self._last[k] = (mine, inv)
+            out[dest] = inv.reshape(-1)
+        return out
+
+    def destroy(self):
+        for iset, _, _ in self.chunks:
+            iset.destroy()
+        self.chunks = []
+
+
+def _digest(indptr, cols):
+    """A digest of a submatrix's CSR pattern."""
+    h = hashlib.blake2b(np.ascontiguousarray(indptr).data, digest_size=16)
+    h.update(np.ascontiguousarray(cols).data)
+    return h.digest()
 
 
 def _inverse(a):

@@ -90,19 +90,27 @@ def test_lines_of_a_graded_box_are_straight():
 
 
 @skip_in_parallel
-def test_block_inverse_against_a_dense_inverse():
-    """BlockPattern.values: the inverse of the entries whose row and column lie in one
-    block (blocks of 3, 6 and 9 rows, scattered), as numpy inverts the dense matrix with the
-    other entries zeroed; again after one block's values change (only it is inverted
-    again: the others' inverses are kept, and still right)."""
+@pytest.mark.parametrize("chunk", [1000, 7])
+def test_block_inverse_against_a_dense_inverse(chunk, monkeypatch):
+    """BlockPattern.read and values: the inverse of the entries whose row and column lie in
+    one block (blocks of 3, 6 and 9 rows, scattered), as numpy inverts the dense matrix
+    with the other entries zeroed, read from the operator in one submatrix or in several
+    (CHUNK_ROWS); again after one block's values change (only it is inverted again: the
+    others' inverses are kept, and still right); a changed pattern reads as None."""
+    monkeypatch.setattr(line_smoother, "CHUNK_ROWS", chunk)
     rng = np.random.default_rng(7)
     block = np.repeat(rng.permutation([0, 1, 0, 2, 2, 1, 3, 0, 4, 4, 4, 5]), 3)
     n = block.size
     mask = (rng.random((n, n)) < 0.5) | np.eye(n, dtype=bool)
     A = np.where(mask, rng.random((n, n)), 0.0) + n * np.eye(n)
-    indptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))])
-    cols = np.nonzero(mask)[1]
-    bp = line_smoother.BlockPattern(block, indptr, cols)
+    indptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))]).astype(PETSc.IntType)
+    cols = np.nonzero(mask)[1].astype(PETSc.IntType)
+
+    def mat(vals, cols=cols):
+        return PETSc.Mat().createAIJ((n, n), csr=(indptr, cols, vals), comm=PETSc.COMM_SELF)
+
+    bp = line_smoother.BlockPattern(block, mat(A[mask]))
+    assert len(bp.chunks) == (1 if chunk > n else 5)   # blocks start at rows 0, 9, 15, 21, 24, 33
 
     def inverse(vals):
         dense = np.zeros((n, n))
@@ -113,11 +121,17 @@ def test_block_inverse_against_a_dense_inverse():
     for change in (None, 2):
         if change is not None:
             A[np.ix_(block == change, block == change)] *= 1.5
-        got = inverse(A[mask])
+        got = inverse(bp.read(mat(A[mask])))
         want = np.linalg.inv(np.where(same, A, 0.0))
         assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
         assert np.all(got[~same] == 0)
-    assert bp.matches(indptr, cols) and not bp.matches(indptr, cols[::-1])
+    moved = mask.copy()
+    row = np.flatnonzero(~mask[0])[0]                    # one entry of row 0 moved
+    moved[0, row], moved[0, np.flatnonzero(mask[0] & ~np.eye(n, dtype=bool)[0])[0]] = \
+        True, False
+    assert bp.read(PETSc.Mat().createAIJ((n, n), csr=(
+        np.concatenate([[0], np.cumsum(moved.sum(axis=1))]).astype(PETSc.IntType),
+        np.nonzero(moved)[1].astype(PETSc.IntType), A[moved]), comm=PETSc.COMM_SELF)) is None
 
 
 def _plate(nd, ratio):
