@@ -64,6 +64,11 @@ GRADED_NDS = [4, 6, 8, 10, 12, 16]
 #: each quantity's graded study: the -error_quantity it aims at (None: the default, the
 #: energy norm's indicator)
 AIMS = {"umax": "max_u", "force": "force", "energy": None}
+#: q2 on the beam graded once and refined uniformly: the grading of the max |u| study's run
+#: at the first N here (its map's points at that run's element boundaries: every N here a
+#: multiple of it, each element inside one piece of the map), then these N (one family:
+#: Richardson triples)
+FAMILY_NDS = [8, 16, 24, 32]
 #: CalculiX C3D20R's max |u| on the paper's beam at N = 2, 4, 8 (issue 25's table)
 C3D20R = (4.4601e-4, 4.5274e-4, 4.5403e-4)
 
@@ -244,13 +249,14 @@ def sweep(nd, small, args, log, unavailable):
 TOTAL = "total"      # the directory prefix of the total-error runs
 
 
-def total_study(nds, args, log, element=None, aim=False):
+def total_study(nds, args, log, element=None, aim=False, scene=None):
     """The default solver as a user runs it (no option but -nd, and -element when given)
     on each Nd, on args.total_np ranks: whole-process wall time, and each quantity's total
     error (solver + discretisation) against its continuum value (convergence.continuum
     over the runs). aim: a quantity's key (AIMS), for the mesh graded by the run aimed at
     it (-mesh_grading auto [-error_quantity Q]): no continuum value of its own (each mesh
-    graded by its own pilot: not one family). Returns {"rows", "limits", "costs", "np",
+    graded by its own pilot: not one family). scene: another scene than the paper's beam
+    (family_scene's), its runs tagged "family". Returns {"rows", "limits", "costs", "np",
     "element"[, "aim"]}."""
     rows = []
     tag = f"-{element}" if element else ""
@@ -259,6 +265,9 @@ def total_study(nds, args, log, element=None, aim=False):
         tag += f"-graded-{AIMS[aim] or 'energy'}"
         opts += ["-mesh_grading", "auto"] + (["-error_quantity", AIMS[aim]] if AIMS[aim]
                                              else [])
+    if scene:
+        tag += "-family"
+        opts += ["-scene", scene]
     for n in nds:
         r = harness.run_case(os.path.join(args.out_dir, f"{TOTAL}-np{args.total_np}{tag}-nd{n}"),
                              ["-nd", n] + opts, args.total_np, timeout=args.total_timeout,
@@ -286,8 +295,38 @@ def total_study(nds, args, log, element=None, aim=False):
            "element": element or "q1"}
     if aim:
         tot.update(aim=aim, element=f"{element} graded")
+    if scene:
+        tot.update(element=f"{element} family", scene=scene)
     score(tot, limits)
     return tot
+
+
+def family_scene(graded, nd, args):
+    """The paper's beam graded as the max |u| study's run at N = nd (graded: that study;
+    its summary's map, kept at that run's element boundaries and linear between), written
+    beside the cases: its path, or None where that run failed."""
+    import yaml
+    row = next((r for r in graded["rows"] if r["nd"] == nd and r["status"] == "ok"), None)
+    if row is None:
+        return None
+    with open(os.path.join(ROOT, "runs", "paper_beam.yaml")) as f:
+        sc = yaml.safe_load(f)
+    grading = {}
+    for a, cells in zip("xyz", sc["mesh"]["cells_per_nd"]):
+        pts = (row["summary"]["grading"]["axes"].get(a) or {}).get("points")
+        if pts:
+            step, rest = divmod(len(pts) - 1, cells * nd)
+            if rest:
+                raise SystemExit(f"report: the graded run's {a} map has {len(pts)} points, "
+                                 f"not a multiple of its {cells * nd} elements plus one")
+            grading[a] = {"points": pts[::step]}
+    sc["mesh"]["grading"] = grading
+    path = os.path.join(args.out_dir, f"family-nd{nd}.yaml")
+    with open(path, "w") as f:
+        f.write(f"# runs/paper_beam.yaml graded as `-element q2 -nd {nd} -mesh_grading auto "
+                f"-error_quantity max_u` (runs/report.py family_scene)\n")
+        yaml.safe_dump(sc, f)
+    return path
 
 
 def score(tot, limits):
@@ -385,7 +424,8 @@ def plot_errors(nd, data, path):
 ELEMENT_STYLE = {"q1": ("k", "o", "default solver, q1 (the paper's element), one run per Nd"),
                  "q2": ("C0", "s", "default solver, -element q2, one run per Nd"),
                  "q2 graded": ("C3", "^", "-element q2 -mesh_grading auto, aimed at the "
-                                          "panel's quantity")}
+                                          "panel's quantity"),
+                 "q2 family": ("C2", "D", "q2 graded once (for max |u|), refined uniformly")}
 
 
 def plot_total(tot, path, others=()):
@@ -502,6 +542,7 @@ def write_md(sizes, tot, mr, args, times, unavailable, quad=None, graded=()):
           ""]
     L += total_md(tot) + (quadratic_md(*quad) if quad else []) + (
         graded_md(quad[0], quad[1], graded[0], graded[1]) if quad and graded else []) \
+        + (family_md(quad[0], quad[1], graded[2]) if quad and graded and graded[2] else []) \
         + make_run_md(mr)
     L += ["", "## The solver's own error against its tolerance", "",
           "The default solver first, then the paper's loops and their variants, each against "
@@ -841,6 +882,54 @@ def graded_md(q1, q2, graded, picture):
     return L
 
 
+def family_md(q1, q2, fam):
+    """q2 on the beam graded once and refined uniformly: its runs, and the continuum values
+    its Richardson triples give beside those of the uniform q1 and q2 sequences."""
+    ok = [r for r in fam["rows"] if r["status"] == "ok" and "err" in r]
+    if not ok:
+        return []
+    nds = ", ".join(str(r["nd"]) for r in fam["rows"])
+    rel = os.path.relpath(fam["scene"], ROOT)
+    L = ["", "## One graded mesh refined uniformly: a family for Richardson", "",
+         f"The graded runs above are each graded by their own pilot, so they extrapolate to "
+         f"nothing. Here the grading of the max |u| run at N = {fam['rows'][0]['nd']} is "
+         f"kept (its map at that run's element boundaries, linear between: `{rel}`, "
+         f"`runs/report.py` family_scene) and refined uniformly, q2 at N = {nds} (`mpirun "
+         f"-n {fam['np']} python -m contact -scene {rel} -element q2 -nd N`): each element "
+         f"lies in one piece of the map, so the meshes are one family, and each quantity "
+         f"is extrapolated from it as from the uniform sequences (the second estimate from "
+         f"16, 24, 32 where 8, 16, 32 is the only doubling triple). Errors in the table "
+         f"against the continuum values used above.", ""]
+    own = fam["own"]
+    L += ["| quantity | from the graded family | its error estimate, order | from q1 "
+          "(uniform) | its error estimate | from q2 (uniform) | its error estimate | family "
+          "- q1 | within the estimates |", "|---|---|---|---|---|---|---|---|---|"]
+    for k, name, _ in QUANTITIES:
+        a, b, c = own.get(k), q1["limits"].get(k), q2["limits"].get(k)
+        if not (a and b and c):
+            continue
+        d = (a["value"] - b["value"]) / abs(b["value"])
+        within = abs(d) <= a["relative_error"] + b["relative_error"]
+        L.append(f"| {md(name)} | {a['value']:.7e} | {lvl(a['relative_error'])}, "
+                 + (f"{a['order']:.2f}" if a["order"] else "–")
+                 + f" | {b['value']:.7e} | {lvl(b['relative_error'])} | {c['value']:.7e} | "
+                 f"{lvl(c['relative_error'])} | {lvl(d)} | {'yes' if within else '**no**'} |")
+    L += ["", "How each family value was extrapolated: "
+          + "; ".join(f"{name}: {own[k]['method']}" for k, name, _ in QUANTITIES if k in own)
+          + "."]
+    wild = [f"{name} (orders {own[k]['order']:.2f} and {own[k]['second']['order']:.2f})"
+            for k, name, _ in QUANTITIES if k in own and own[k]["order"] and own[k]["second"]
+            and max(own[k]["order"], own[k]["second"]["order"]) >
+            1.5 * min(own[k]["order"], own[k]["second"]["order"])]
+    if wild:
+        L += ["", "Not in the asymptotic range on this family: " + "; ".join(wild) + ". The "
+              "two triples' orders disagree, so their extrapolations do too, and the "
+              "estimate (their difference) is large: this family does not pin that value "
+              "down, and it is not used."]
+    L += ["", "### The family's runs", ""] + runs_table(fam)
+    return L
+
+
 def compare_elements(q1, q2):
     """Copies of the two studies scored against common_limits (one q* per quantity)."""
     import copy
@@ -909,6 +998,10 @@ def main(argv=None):
                     help="sizes of q2 on meshes graded by the run, one study per quantity "
                          f"(default {' '.join(map(str, GRADED_NDS))}; --quick, --smoke: 4; "
                          "none: skip it)")
+    ap.add_argument("--family-nd", type=int, nargs="*", default=None,
+                    help="sizes of q2 on the beam graded once by the max |u| run at the "
+                         f"first size, then refined (default {' '.join(map(str, FAMILY_NDS))}"
+                         "; --quick, --smoke: 4 8; none: skip it)")
     ap.add_argument("--total-np", type=int, default=2,
                     help="MPI ranks of the total-error runs (default 2)")
     ap.add_argument("--total-timeout", type=int, default=900,
@@ -945,6 +1038,8 @@ def main(argv=None):
         [1, 2, 3, 4] if args.smoke or args.quick else Q2_NDS)
     graded_nds = args.graded_nd if args.graded_nd is not None else (
         [4] if args.smoke or args.quick else GRADED_NDS)
+    family_nds = sorted(args.family_nd if args.family_nd is not None else (
+        [4, 8] if args.smoke or args.quick else FAMILY_NDS))
     if args.smoke:
         args.total_np = 1
     t0 = time.perf_counter()
@@ -1015,21 +1110,33 @@ def main(argv=None):
             g = total_study(sorted(graded_nds), args, log, element="q2", aim=k)
             score(g, quad[0]["against"])
             studies.append(g)
+        family = None
+        path = family_scene(studies[0], family_nds[0], args) if family_nds and \
+            family_nds[0] in graded_nds else None
+        if path:
+            log(f"== total error, -element q2 on the beam graded once ({path}), "
+                f"Nd = {' '.join(map(str, family_nds))}")
+            family = total_study(family_nds, args, log, element="q2", scene=path)
+            own = family["limits"]
+            score(family, quad[0]["against"])
+            family["own"] = own
         plot_total(quad[0], os.path.join(results, "total_error_vs_time_graded.png"),
-                   [quad[1]] + studies)
+                   [quad[1]] + studies + ([family] if family else []))
         log(f"wrote {os.path.join(results, 'total_error_vs_time_graded.png')}")
-        graded = (studies, picture(studies[0], results))
+        graded = (studies, picture(studies[0], results), family)
 
     elapsed = time.perf_counter() - t0
     cases = [c for d in sizes.values() for c in d["refs"] + [x for v in d["sweeps"].values()
                                                             for x in v]] + tot["rows"] + (
         quad[1]["rows"] if quad else []) + [r for g in (graded[0] if graded else ())
-                                            for r in g["rows"]]
+                                            for r in g["rows"]] + (
+        graded[2]["rows"] if graded and graded[2] else [])
     scratch = sum(c.get("wall") or 0.0 for c in cases) + probe_time + sum(
         sum(x["walls"]) for x in (mr or {}).values())
     write_md(sizes, tot, mr, args, (elapsed, scratch), unavailable, quad, graded)
     save_data(sizes, tot, mr, elapsed, os.path.join(results, "data.json"),
-              quad[1] if quad else None, graded[0] if graded else ())
+              quad[1] if quad else None, graded[0] if graded else (),
+              graded[2] if graded else None)
     log(f"wrote {args.record} (this run {elapsed / 60:.1f} min; from scratch "
         f"{scratch / 60:.1f} min)")
     return 0
@@ -1051,7 +1158,7 @@ def picture(study, results):
     return path, caption
 
 
-def save_data(sizes, tot, mr, elapsed, path, q2=None, graded=()):
+def save_data(sizes, tot, mr, elapsed, path, q2=None, graded=(), family=None):
     """The numbers behind the report (no arrays), for later comparison."""
     def strip(c):
         keep = ("name", "status", "tol", "time", "err", "opts", "why", "error", "label")
@@ -1065,6 +1172,7 @@ def save_data(sizes, tot, mr, elapsed, path, q2=None, graded=()):
             "total_q2": q2,
             "graded": [dict(g, rows=[{k: v for k, v in r.items() if k != "summary"}
                                      for r in g["rows"]]) for g in graded],
+            "family": family,
             "make_run": mr,
             "sizes": {nd: {"dofs": d["dofs"], "agreement": d["agreement"],
                            "refs": [strip(r) for r in d["refs"]],

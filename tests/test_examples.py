@@ -13,7 +13,9 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+import yaml
 from conftest import ROOT, skip_in_parallel
 
 from contact.validation import harness, theory as th
@@ -193,13 +195,13 @@ def test_report(tmp_path):
     assert float(row[1]) > 0
     # the same with -element q2 at N = 1 .. 4: the unknowns of q1 at 2 N, J falling, below
     # q1's at the same unknowns (N = 2, 4 against Nd = 4, 8), a cost row per element
+    quad, _, graded = quad.partition("## Meshes graded by the run")
     q2 = {n: [r for r in table_rows(quad, n) if len(r) == 14] for n in (1, 2, 3, 4)}
     assert all(len(r) == 1 for r in q2.values()), q2
     assert all(int(q2[n][0][1]) == n_p(2 * n) for n in q2)
     J2 = [float(q2[n][0][10]) for n in (1, 2, 3, 4)]
     assert all(a > b for a, b in zip(J2, J2[1:]))
     assert J2[1] < J[2] and J2[3] < J[4]
-    quad, _, graded = quad.partition("## Meshes graded by the run")
     assert [r[1] for r in table_rows(quad, "energy J") if len(r) == 5] == ["q1", "q2"]
     # q2 graded by the run at N = 4, aimed at each quantity: q2's unknowns at N = 4, and
     # the grading aimed at the energy lowers J below the uniform q2's at the same unknowns
@@ -210,6 +212,19 @@ def test_report(tmp_path):
     assert float(rows["energy (default)"][7]) < J2[3]
     assert [r[1] for r in table_rows(graded, "energy J") if len(r) == 5] == \
         ["q1", "q2", "q2 graded"]
+    # the max |u| run's grading at N = 4 kept and refined (N = 4, 8): a graded scene (the
+    # map's points at N = 4's elements: 13, 5, 5, increasing, not evenly spaced), q2's
+    # unknowns, J falling
+    graded, _, family = graded.partition("## One graded mesh refined uniformly")
+    fam = {n: [r for r in table_rows(family, n) if len(r) == 14] for n in (4, 8)}
+    assert all(len(r) == 1 for r in fam.values()), fam
+    assert int(fam[4][0][1]) == n_p(8) and int(fam[8][0][1]) == n_p(16)
+    assert float(fam[8][0][10]) < float(fam[4][0][10])
+    sc = yaml.safe_load(read(tmp_path / "family-nd4.yaml"))
+    assert [len(sc["mesh"]["grading"][a]["points"]) for a in "xyz"] == [13, 5, 5]
+    for a in "xyz":
+        step = np.diff(sc["mesh"]["grading"][a]["points"])
+        assert step.min() > 0 and step.max() > (2.0 if a == "x" else 1.05) * step.min()
     for f in ("error_vs_time_nd2.png", "total_error_vs_time.png",
               "total_error_vs_time_elements.png", "total_error_vs_time_graded.png",
               "graded_mesh.png", "data.json"):

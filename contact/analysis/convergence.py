@@ -5,7 +5,8 @@ In the asymptotic range a quantity computed on meshes of size h = 1/Nd behaves l
 q(h) = q* + C h^p. Three meshes determine q*, C and p (generalised Richardson
 extrapolation: p from the ratio of the two differences, by bisection, for any ratios of
 h). `continuum` extrapolates from the finest triple of meshes that double (Nd, 2 Nd, 4 Nd;
-the finest three where none double) and again from the next-finest such triple; the
+the finest three where none double) and again from the next-finest such triple (or, where
+there is none, the finest other three consecutive meshes: 8, 16, 32 and 16, 24, 32); the
 difference of the two limits is the error estimate of the first (the usual
 difference-of-successive-extrapolations estimate: it is small only where both triples
 are in the asymptotic range and agree). Where the differences of the finest triple change
@@ -69,14 +70,16 @@ def continuum(nds, values):
     q = dict(zip(nds, values))
     if len(q) < 2:
         raise ValueError("continuum: needs at least two meshes")
-    found = []
-    for t in triples(q):
+    found, ts = [], triples(q)
+    s = sorted(q)
+    ts += [t for t in (tuple(s[i - 2:i + 1]) for i in range(len(s) - 1, 1, -1))
+           if t not in ts]                     # (the second estimate: any other triple)
+    for t in ts:
         r = richardson([1.0 / n for n in t], [q[n] for n in t])
         if r is not None:
             found.append((t, r))
         if len(found) == 2:
             break
-    s = sorted(q)
     fine, prev = q[s[-1]], q[s[-2]]
     first = triples(q)[0] if len(s) >= 3 else None
     if not found or found[0][0] != first:

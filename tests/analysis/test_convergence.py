@@ -50,6 +50,22 @@ def test_continuum_error_estimate_covers_the_true_error():
     assert "Richardson from Nd = 10, 20, 40" in c["method"]
 
 
+def test_continuum_second_estimate_from_a_triple_that_does_not_double():
+    """One doubling triple (8, 16, 32) and 24 beside it: the second estimate comes from the
+    consecutive triple 16, 24, 32 (generalised Richardson), not from the first's own
+    correction; exact on q* + C h^p."""
+    nds = [8, 16, 24, 32]
+    c = cv.continuum(nds, seq(nds, lambda h: 2.0 + 3.0 * h ** 1.5))
+    assert c["triple"] == [8, 16, 32] and c["second"]["triple"] == [16, 24, 32]
+    assert abs(c["value"] - 2.0) < 1e-12 and abs(c["second"]["value"] - 2.0) < 1e-12
+    assert abs(c["second"]["order"] - 1.5) < 1e-9 and c["error"] < 1e-12
+    # where that triple gives no extrapolation (equal differences: no order in range), the
+    # next one does: 8, 16, 24
+    c = cv.continuum(nds, [1.0, 1.5, 1.6, 1.7])
+    assert c["triple"] == [8, 16, 32] and c["second"]["triple"] == [8, 16, 24]
+    assert cv.richardson([1 / 16, 1 / 24, 1 / 32], [1.5, 1.6, 1.7]) is None
+
+
 def test_continuum_without_extrapolation_says_so():
     nds = [4, 8, 16]
     c = cv.continuum(nds, [1.0, 1.2, 1.1])
