@@ -218,8 +218,9 @@ class BlockPattern:
 
     The entries are read chunk by chunk: the submatrix of D on the rows and columns of
     a run of whole blocks of about CHUNK_ROWS rows (MatCreateSubMatrices), so that no copy
-    of the whole operator is made (reading D's CSR at once took 2.9 times the memory of
-    the run: the q2 beam graded at N 32 ran out of 23 GB; runs/results/line-smoother.md)."""
+    of the whole operator is made (with D's whole CSR read at each set-up, the q2 beam
+    graded once and refined to N = 32, 2.4M dofs, ran out of 23 GB on 2 ranks; runs/
+    results/line-smoother.md)."""
 
     def __init__(self, block, D):
         n = block.size
