@@ -18,12 +18,12 @@ import time
 from petsc4py import PETSc
 
 from contact.fem import admissibility
-from contact.solvers import driver, multigrid
+from contact.solvers import driver, line_smoother, multigrid
 from contact.solvers.linear import LinearSolvers
 from contact.solvers.solution import Solution
 from contact.io import output
 from contact.analysis import estimate, goal as goals
-from contact import fem, options
+from contact import fem, options, resources
 from contact.mesh import transfer
 from contact.fem.discretisation import Discretisation, element_of
 from contact.mesh.hierarchy import MeshHierarchy
@@ -83,6 +83,7 @@ class ContactProblem:
             self.disc = Discretisation(self.scene, self.comm, hierarchy, self.level, blocked)
             #: the multigrid and the pressure split the linear solves share (built once)
             self.solvers = LinearSolvers(self.disc, rediscretise=blocked)
+            self._check_lines()
             self.skipped = self.disc.skipped      # what this scene does not need (reported)
             self.friction_held, self.contact_held = admissibility.check(self.disc)
             self.x = self.b.duplicate()           # the DM's Vec type (cuda, ...), as b
@@ -93,6 +94,16 @@ class ContactProblem:
         finally:
             stage.pop()
         self.time_setup = time.perf_counter() - t0
+
+    def _check_lines(self):
+        """The size check again where the multigrid smooths lines (their dense blocks, known
+        only now that the mesh is: resources.check with line_smoother.block_bytes)."""
+        mg = self.solvers.multigrid
+        if mg is None or not mg.lines or not options.get("memory_check"):
+            return
+        el = element_of(self.scene)
+        resources.check(self.comm, self.disc.n_dofs, el, options.solver_mode(self.scene),
+                        lines=line_smoother.block_bytes(mg.lines))
 
     def solve(self):
         """Run what the scene needs (driver.py); returns self with x (and l, g) set."""

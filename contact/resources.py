@@ -14,7 +14,9 @@ within a few per cent at Nd = 80 (PARALLEL), and only a need above what is avail
 refused:
 one line with the need, what is there and the rank count that would fit. `-memory_check 0`
 goes on anyway. The indices are checked too: over 2^31 - 1 dofs needs a PETSc built with
-64-bit indices.
+64-bit indices. Where the multigrid smooths lines, the problem checks again once the mesh
+is, with their dense blocks beside the model (problem.py, line_smoother.block_bytes; the
+q2 beam graded once at N = 40 on 2 ranks: 9.9 GiB of blocks on rank 0).
 """
 import math
 import resource
@@ -128,10 +130,12 @@ def _fmt(b):
     return f"{b / GiB:.1f} GiB" if b >= 0.1 * GiB else f"{b / MiB:.0f} MiB"
 
 
-def check(comm, ndofs, element, mode):
+def check(comm, ndofs, element, mode, lines=0.0):
     """Raise ResourceError (the same on every rank) where `ndofs` with `element` in `mode`
     does not fit the ranks of `comm` (module docstring); returns the estimate (bytes per
-    rank) otherwise, None where nothing could be checked."""
+    rank) otherwise, None where nothing could be checked. lines: the bytes of this rank's
+    line smoothers (solvers/line_smoother.py block_bytes; known once the mesh is), beside
+    the model's."""
     mpi = comm.tompi4py()
     n = mpi.size
     if ndofs is None:
@@ -140,7 +144,7 @@ def check(comm, ndofs, element, mode):
         raise ResourceError(f"the mesh has {ndofs:.3g} dofs, more than PETSc's 32-bit indices "
                             f"can count (2^31 - 1): reduce -nd, or use a PETSc built "
                             "--with-64-bit-indices")
-    need = peak_per_rank(ndofs, element, mode, n)
+    need = peak_per_rank(ndofs, element, mode, n) + lines
     rss = _status("VmRSS")
     more = max(need - rss, 0.0)                  # what this rank has yet to allocate
     node = mpi.Split_type(MPI.COMM_TYPE_SHARED)
@@ -160,22 +164,28 @@ def check(comm, ndofs, element, mode):
     if rank is None:
         return need
     kind, want, room = worst[rank][0]
-    fit = _ranks_that_fit(ndofs, element, mode, kind, room, per_node)
+    total = peak_per_rank(ndofs, element, mode, n) * n + mpi.allreduce(lines)
+    need, lines = mpi.allreduce(need, op=MPI.MAX), mpi.allreduce(lines, op=MPI.MAX)
+    fit = _ranks_that_fit(ndofs, element, mode, kind, room, per_node, lines * n)
     where = ("under the process limit (ulimit -v / -d) of a rank" if kind == "proc" else
              f"on a node of {per_node} rank{'s' if per_node > 1 else ''}")
-    total = need * n
+    with_lines = (f", with the multigrid's line smoothers ({_fmt(lines)} on the rank with "
+                  f"the most; -multigrid_line_ratio 0: point-block Jacobi, without them)"
+                  if lines > 0 else "")
     raise ResourceError(
         f"the mesh ({ndofs:,} dofs, {element}, {mode}) needs about {_fmt(need)} per rank "
-        f"({_fmt(total)} on {n} rank{'s' if n > 1 else ''}; runs/results/bench-memory.md), "
-        f"but {_fmt(max(room, 0.0))} is available {where}: {fit}; -memory_check 0 goes on "
-        "anyway")
+        f"({_fmt(total)} on {n} rank{'s' if n > 1 else ''}{with_lines}; runs/results/"
+        f"bench-memory.md), but {_fmt(max(room, 0.0))} is available {where}: {fit}; "
+        "-memory_check 0 goes on anyway")
 
 
-def _ranks_that_fit(ndofs, element, mode, kind, room, per_node):
+def _ranks_that_fit(ndofs, element, mode, kind, room, per_node, lines=0.0):
     """Words: the fewest ranks that would fit, at this many ranks per node (the model's
-    share per rank, which falls with the rank count; each rank's floor is there already)."""
+    share per rank, which falls with the rank count; each rank's floor is there already;
+    lines: the line smoothers' bytes, shared alike)."""
     def fits(m):
-        share = peak_per_rank(ndofs, element, mode, m) - peak_per_rank(0, element, mode, m)
+        share = peak_per_rank(ndofs, element, mode, m) - peak_per_rank(0, element, mode, m) \
+            + lines / m
         return share * (1 if kind == "proc" else per_node) <= room
     if room <= 0 or not fits(1 << 40):
         return "no rank count would fit: nothing is left to give"

@@ -5,6 +5,7 @@ off, an allocation failure inside PETSc ends in one line too."""
 import os
 import resource
 
+import numpy as np
 import pytest
 from conftest import ROOT, cli, paper_scene, skip_in_parallel
 from petsc4py import PETSc
@@ -131,3 +132,33 @@ def test_the_model_is_the_recorded_one():
             if len(cells) == 7 and cells[1] in ("newton", "fast", "faithful"):
                 rows[(cells[0], cells[1])] = (float(cells[6]), float(cells[5]))
     assert rows == resources.MODEL
+
+
+def test_line_blocks_bytes():
+    """block_bytes: BYTES_PER_ENTRY for each entry of the dense blocks, a line of k nodes a
+    (3 k)^2 block: labels 0, 0, 0, 1, 2, 2 are blocks of 9, 3 and 6 rows."""
+    from contact.solvers import line_smoother
+    got = line_smoother.block_bytes({1: np.array([0, 0, 0, 1, 2, 2]), 2: np.array([5])})
+    assert got == line_smoother.BYTES_PER_ENTRY * (81 + 9 + 36 + 9)
+
+
+def test_line_smoothers_too_large_are_refused_once_the_mesh_is(monkeypatch):
+    """The size check again once the mesh is, where the multigrid smooths lines (a plate of
+    aspect-20 cells): with blocks made too large to fit (BYTES_PER_ENTRY raised) the
+    problem is refused in one line naming the line smoothers and -multigrid_line_ratio 0;
+    with point-block Jacobi (ratio 0), or the check off, the same plate is built."""
+    from contact import options
+    from contact.solvers import line_smoother
+    sc = paper_scene(nd=4, mode="newton")               # (levels Nd 2, 4: a multigrid)
+    sc["mesh"]["upper"][2] = 0.03
+    sc["mesh"]["cells_per_nd"] = [5, 2, 1]
+    sc["boundary"]["top"]["plane"][1] = 0.03
+    monkeypatch.setattr(line_smoother, "BYTES_PER_ENTRY", 1e15)
+    with options.inserted({"multigrid_line_ratio": "4"}):
+        with pytest.raises(resources.ResourceError, match=r"line smoothers .*"
+                           r"-multigrid_line_ratio 0: point-block Jacobi"):
+            ContactProblem(sc, PETSc.COMM_WORLD)
+        with options.inserted({"memory_check": "0"}):
+            assert ContactProblem(sc, PETSc.COMM_WORLD).solvers.multigrid.lines
+    with options.inserted({"multigrid_line_ratio": "0"}):
+        assert not ContactProblem(sc, PETSc.COMM_WORLD).solvers.multigrid.lines

@@ -57,6 +57,10 @@ MAX_LINE_NODES = 64
 #: the smoother reads the operator's block-diagonal entries in submatrices of about this
 #: many rows (BlockPattern)
 CHUNK_ROWS = 30000
+#: bytes a line smoother takes per entry of its dense blocks (the AIJ inverse, the numpy
+#: inverse beside it, the indices, the set-up's temporaries): 57 measured on the q2 beam
+#: graded once at N = 16, 1 rank (600 MB for 10.45 million entries; line-smoother.md)
+BYTES_PER_ENTRY = 57.0
 #: an edge joins a line where it lies along its ends' directions: |cos| above this
 ALONG = 0.9
 #: the 12 edges of the hexahedron: vertex pairs (in HEX_REF order) one coordinate apart
@@ -364,6 +368,17 @@ def level_lines(hierarchy, level, ratio):
         if label is not None:
             out[j] = label
     return out
+
+
+def block_bytes(lines):
+    """The bytes the line smoothers of `lines` ({level: the owned vertices' labels},
+    level_lines) take on this rank: BYTES_PER_ENTRY for each entry of their dense blocks
+    (3 rows a node)."""
+    entries = 0
+    for label in lines.values():
+        counts = np.unique(label, return_counts=True)[1].astype(np.int64)
+        entries += 9 * int((counts ** 2).sum())
+    return BYTES_PER_ENTRY * entries
 
 
 def thin(lv, ratio, at_least):
