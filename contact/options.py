@@ -101,9 +101,9 @@ REGISTRY = [
     Option("error_refine", "graded", str, "-error_target: graded (each run graded by the "
            "previous run's error indicator, contact/adapt.py) or uniform", "graded|uniform"),
     Option("error_max_dofs", 20_000_000, int, "-error_target: no run with more dofs", "N"),
-    Option("memory_check", True, bool, "before the mesh: estimate the peak memory per rank "
-           "(runs/results/bench-memory.md) and stop, saying how many ranks would fit, where "
-           "it exceeds what the ranks can have; 0: go on anyway", "BOOL"),
+    Option("memory_check", True, bool, "before the mesh (and after it, with line smoothers): "
+           "estimate the peak memory per rank (bench-memory.md) and stop, saying how many "
+           "ranks would fit, where it exceeds what the ranks can have; 0: go on anyway", "BOOL"),
     Option("solver_mode", "newton", str, "newton: one semismooth Newton iteration on the whole "
            "problem (default); faithful: the paper's loops; fast: the loops with the preset "
            "SSN inner solver, warm starts, inexact loops (options given still win)",
