@@ -81,7 +81,7 @@ def continuum(nds, values):
         if len(found) == 2:
             break
     fine, prev = q[s[-1]], q[s[-2]]
-    first = triples(q)[0] if len(s) >= 3 else None
+    first = ts[0] if len(s) >= 3 else None
     if not found or found[0][0] != first:
         return {"value": fine, "error": abs(fine - prev), "order": None, "triple": None,
                 "second": None,

@@ -175,7 +175,7 @@ class LineSmoother:
             if self.pattern is not None:
                 self.pattern.destroy()
             self.pattern = BlockPattern(self.block, D)
-            vals = self.pattern.read(D)
+            vals, self.pattern.first = self.pattern.first, None  # (read as it was built)
             if self.binv is not None:
                 self.binv.destroy()
             n, r0 = self.block.size, P.getOwnershipRange()[0]
@@ -236,12 +236,12 @@ class BlockPattern:
         # chunks: runs of whole blocks, a new one where CHUNK_ROWS more rows have begun
         cut = np.flatnonzero(np.diff(start[:-1] // CHUNK_ROWS)) + 1
         self.chunks = []                         # (IS, pattern digest, in-block entries)
-        rows, cols = [], []
+        rows, cols, vals = [], [], []
         for first, last in zip(np.concatenate([[0], cut]), np.concatenate([cut, [size.size]])):
             sel = np.sort(order[start[first]:start[last]]).astype(PETSc.IntType)
             iset = PETSc.IS().createGeneral(sel, comm=PETSc.COMM_SELF)
             sub = D.createSubMatrices([iset], [iset])[0]
-            indptr, c, _ = sub.getValuesCSR()
+            indptr, c, v = sub.getValuesCSR()
             sub.destroy()
             digest = _digest(indptr, c)
             r, c = sel[np.repeat(np.arange(sel.size), np.diff(indptr))], sel[c]
@@ -249,7 +249,10 @@ class BlockPattern:
             self.chunks.append((iset, digest, inside))
             rows.append(r[inside])
             cols.append(c[inside])
+            vals.append(v[inside])
         rows, cols = np.concatenate(rows), np.concatenate(cols)
+        #: the block-diagonal values read while building (read(D)'s, without reading again)
+        self.first = np.concatenate(vals)
         pos = np.empty(n, dtype=np.intp)
         pos[order] = np.arange(n) - start[block[order]]       # a row's place in its block
         # row r of the inverse: its block's rows (in order)
