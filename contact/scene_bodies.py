@@ -79,9 +79,9 @@ def expand(scene):
         raise SceneError(f"bodies must map body names to boxes, got {shown(bodies)}")
     mesh = scene.get("mesh", {})                  # (-nd, -element: mesh.nd, mesh.element)
     if not isinstance(mesh, dict) or mesh.get("type", "bodies") != "bodies" or \
-            set(mesh) - {"type", "nd", "element", "bodies"}:
-        raise SceneError("a scene with bodies: has no mesh section but nd and element (each "
-                         "body is its own box)")
+            set(mesh) - {"type", "nd", "element", "bodies", "rotate"}:
+        raise SceneError("a scene with bodies: has no mesh section but nd, element and rotate "
+                         "(each body is its own box)")
     boxes = []
     for name, b in bodies.items():
         if not isinstance(name, str):

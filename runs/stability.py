@@ -527,6 +527,12 @@ def cases_bodies():
              for e in ("q1", "bbar", "q2", "q2p1") for v in ("0.49", "0.4999") for n in (1, 2)]
     rows += [Case(f"bodies-gasket-bbar-F{f}", f"the bbar gasket (nu = 0.49), F = {f}, Nd = 2",
                   gasket + nd(2) + ["-friction", f]) for f in ("0", "1")]
+    fit = ["-scene", os.path.join(SCENES, "shrink_fit.yaml")]     # a curved slave face
+    rows += [Case(f"bodies-shrink-fit-F{f}-nd{n}", f"a shrink fit (curved pair), F = {f}, "
+                  f"Nd = {n}", fit + nd(n) + ["-friction", f])
+             for f in ("0", "0.3", "1") for n in (1, 2, 4)]
+    rows += [Case("bodies-shrink-fit-refined", "the shrink fit refined twice from Nd = 1, "
+                  "coarse-to-fine", fit + ["-mesh_refine", "2", "-c2f_levels", "2"])]
     return rows
 
 
@@ -782,7 +788,9 @@ GROUPS = {
                "on the plate's 10; a q1 punch on a q2 plate and the reverse "
                "(punch_on_plate_mixed.yaml), F = 0.3 and 1, Nd = 1, 2; a rubber gasket between "
                "steel parts (gasket.yaml: E 2.1e4 times the steel's) as q1, bbar, q2 and "
-               "q2p1, nu = 0.49 and 0.4999, Nd = 1, 2, and F = 0, 1.", cases_bodies),
+               "q2p1, nu = 0.49 and 0.4999, Nd = 1, 2, and F = 0, 1; a shrink fit of two "
+               "tubes (shrink_fit.yaml: a curved slave face), F = 0 to 1, Nd = 1, 2, 4, and "
+               "refined twice from Nd = 1.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),

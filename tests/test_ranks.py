@@ -131,6 +131,22 @@ def test_two_bodies(friction):
         assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
 
 
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_shrink_fit_curved_pair(friction):
+    """runs/scenes/shrink_fit.yaml at Nd 2 (a curved slave face, a basis per slave node:
+    fem/pairs_curved.py): the same answer on every partition, the pair spanning ranks
+    (its slave nodes and the master's cells not all on one)."""
+    sc = scenes.load(os.path.join(ROOT, "runs", "scenes", "shrink_fit.yaml"))
+    sc["mesh"]["nd"] = 2
+    sc["contact"]["friction"] = friction
+    du, dp, par, ser = _compare(sc, EXACT)
+    assert du < TOL and dp < TOL, (du, dp)
+    if MPI.COMM_WORLD.size >= 2:
+        mine = (par.cs.local_size > 0, bool(np.any(par.disc.body_of == 1)))   # (the hub's)
+        mpi = par.comm.tompi4py()
+        assert len({r for r, (s, m) in enumerate(mpi.allgather(mine)) if s or m}) > 1
+
+
 @pytest.mark.parametrize("punch", ["q2", "q1"])
 @pytest.mark.parametrize("friction", [0.0, 0.3])
 def test_two_bodies_q2(friction, punch):

@@ -195,7 +195,9 @@ def contact_basis(cs):
     """(m, 3, 3): per owned contact node, row c = the direction in x, y, z of its
     contact-space component c (t1, t2, n), read from the contact set's components (the
     frame's basis off the axes); n's sign is cs.sign's (a contact pair's, per node:
-    contact_state)."""
+    contact_state); a curved contact pair's bases (cs.bases, fem/pairs_curved.py)."""
+    if cs.bases is not None:
+        return cs.bases
     if cs.off_axes:
         return np.broadcast_to(basis(cs.normal), (cs.local_size, 3, 3))
     return np.eye(3)[cs.components]
@@ -238,11 +240,20 @@ def contact_state(problem, x=None, b=None, gap=None, u=None, slip=None):
 
 def resultants(comm, state, normal):
     """Resultant contact force (x, y, z), its normal and tangential parts, and the
-    contact, stick and slip areas, summed over ranks (dict, JSON-ready)."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    force = comm.allreduce((state["traction"] * state["w"][:, None]).sum(axis=0))
-    N = float(force @ n)
-    tang = force - N * n
+    contact, stick and slip areas, summed over ranks (dict, JSON-ready). normal: one
+    (3,), or per node (m, 3) (a curved pair's: the normal part is then the sum of the
+    nodes' normal forces, the tangential part the resultant of their tangential ones)."""
+    normal = np.asarray(normal, dtype=float)
+    f = state["traction"] * state["w"][:, None]
+    force = comm.allreduce(f.sum(axis=0))
+    if normal.ndim == 2:
+        fn = np.einsum("ij,ij->i", f, normal)
+        N = float(comm.allreduce(fn.sum()))
+        tang = comm.allreduce((f - fn[:, None] * normal).sum(axis=0))
+    else:
+        n = normal / np.linalg.norm(normal)
+        N = float(force @ n)
+        tang = force - N * n
     areas = np.array([state["w"][state["status"] == k].sum() for k in range(3)])
     areas = comm.allreduce(areas)
     return {"force": [float(c) for c in force], "normal": N,
@@ -250,6 +261,12 @@ def resultants(comm, state, normal):
             "tangential_force": [float(c) for c in tang],
             "area": {"contact": float(areas[1] + areas[2]), "stick": float(areas[1]),
                      "slip": float(areas[2]), "separated": float(areas[0])}}
+
+
+def _normals(cs, on=slice(None)):
+    """Per owned contact node (`on` of them), its normal into the body: the contact
+    space's direction 2 times cs.sign (the slave body's side of a pair)."""
+    return (cs.bases[:, 2] * np.reshape(cs.sign, (-1, 1)) * np.ones((cs.local_size, 1)))[on]
 
 
 def pair_results(problem):
@@ -277,7 +294,8 @@ def by_pair(comm, disc, st):
             ids, more = p["extra"]           # beside crosspoints: psi_k' (pairs_crosspoints)
             at = np.minimum(np.searchsorted(ids, mine[on]), ids.size - 1)
             sub["w"] = sub["w"] + np.where(ids[at] == mine[on], more[at], 0.0)
-        out[p["name"]] = resultants(comm, sub, p["normal"])
+        out[p["name"]] = resultants(comm, sub, p["normal"] if p["normals"] is None else
+                                    _normals(cs, on))
     return out
 
 
@@ -307,7 +325,9 @@ def summary(problem):
     st = final(problem)
     body = st["body"]
     value, where = peak(comm, body["cell_von_mises"], body["centroid"])
-    out = {"contact_result": (resultants(comm, st["contact"], problem.normal)
+    cs = problem.cs
+    normal = problem.normal if cs is None or cs.bases is None else _normals(cs)
+    out = {"contact_result": (resultants(comm, st["contact"], normal)
                               if st["contact"] is not None else None),
            "von_mises_max": {"value": value if np.isfinite(value) else None,
                              "location": where,

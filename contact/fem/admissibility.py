@@ -59,11 +59,12 @@ def check_bodies(disc):
     needs_pair = bool(on_foundation)
     cs = disc.cs                                  # each contact node's normal (pairs: +-e_k)
     normals = np.asarray(disc.normal, dtype=float) if cs is None or cs.off_axes else \
-        np.eye(3)[cs.components[:, 2]]
+        np.eye(3)[cs.components[:, 2]] if cs.bases is None else cs.bases[:, 2]
     ks = sorted(set().union(*disc.comm.tompi4py().allgather(
         set() if cs is None or cs.off_axes else set(cs.components[:, 2].tolist()))))
-    tangential = lambda Q: all(fem.tangential_modes(Q, n) for n in  # noqa: E731
-                               ([disc.normal] if not ks else np.eye(3)[ks]))
+    # (a curved pair's nodes, each its own normal: a motion they leave free is tangential)
+    tangential = lambda Q: cs.bases is not None or all(  # noqa: E731
+        fem.tangential_modes(Q, n) for n in ([disc.normal] if not ks else np.eye(3)[ks]))
     gid = rstart // 3 + (cs.nodes if cs is not None else np.zeros(0, dtype=np.intp))
     for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
         m = mask.getArray(readonly=True)

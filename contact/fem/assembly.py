@@ -431,6 +431,25 @@ def configure_elasticity(A, coordinates, frame=None, near_nullspace=True):
     return ns
 
 
+def orthonormal_nullspace(vecs, comm):
+    """A NullSpace of the Vecs `vecs`, orthonormalised (modified Gram-Schmidt; the Vecs are
+    used up: those nearly dependent on the others dropped)."""
+    out = []
+    for v in vecs:
+        for q in out:
+            v.axpy(-v.dot(q), q)
+        nrm = v.norm()
+        if nrm > 1e-10:
+            v.scale(1.0 / nrm)
+            out.append(v)
+        else:
+            v.destroy()
+    ns = PETSc.NullSpace().create(vectors=out, comm=comm)
+    for v in out:
+        v.destroy()
+    return ns
+
+
 def is_blocked(A):
     """Whether A is BAIJ (create_matrix's `blocked`)."""
     return A.getType() in (PETSc.Mat.Type.SEQBAIJ, PETSc.Mat.Type.MPIBAIJ)

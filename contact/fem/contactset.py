@@ -63,6 +63,9 @@ class ContactSet:
         #: with n = -e_axis, fem/pairs.py, reads it through its change of basis: -1; an
         #: array per contact node where there are several pairs)
         self.sign = 1.0
+        #: (m, 3, 3) per contact node, its contact-space directions in x, y, z where a
+        #: contact pair's slave face is curved (fem/pairs_curved.py), else None
+        self.bases = None
         self.axis = axis if axis is not None else 2       # contact space 2 <- this dof
         nv = coords.shape[0]
         # per vertex: [on a contact face, -, lumped weight]; summed over ranks

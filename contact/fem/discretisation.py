@@ -343,6 +343,7 @@ class Discretisation:
         pairs = [(n, p) for n, p in bnd.items() if p["type"] == "contact" and "master" in p]
         if pairs:
             self.pair = contact_pairs(self, pairs)
+            self.clamped = self.pair.clamped_rows(self.clamped)  # (curved pairs' bases)
             self.pair_bodies = [(n, p["body"], p["master"]["body"]) for n, p in pairs]
             gap, covered = self.pair.vertex_gaps(template.getLocalSize() // 3, rstart // 3)
             axes = self.pair.vertex_axes(template.getLocalSize() // 3, rstart // 3)
@@ -352,7 +353,7 @@ class Discretisation:
                                                                  axes)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template,
-                             normal=self.normal if self.pair is None else np.abs(self.pair.normal),
+                             normal=self.normal if self.pair is None else np.eye(3)[self.pair.axis],
                              point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
                              roles=self.roles, covered=covered, axes=axes)
         if self.bodies is not None:              # a contact part's own friction
@@ -360,6 +361,7 @@ class Discretisation:
         if self.pair is not None:                # n = -e_k: read as +e_k through Z (pairs.py)
             self.normal = list(self.pair.normal)
             self.cs.sign = self.pair.signs(rstart // 3 + self.cs.nodes)   # (per node)
+            self.cs.bases = self.pair.bases(rstart // 3 + self.cs.nodes, self.cs.components)
             off = self.pair.weight_off(template.getLocalSize() // 3, rstart // 3)
             if off is not None:                  # crosspoints: their first pair's D_j
                 self.cs.w.setArray(self.cs.local_array(self.cs.w) - off[self.cs.nodes])

@@ -28,12 +28,17 @@ nodes only.
 Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pair's slave
 nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
 the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
-node of another (E E = 0); `_check_nodes` refuses the latter (PairError, one line naming
+node of another (E E = 0); pairs_crosspoints.check_nodes refuses the latter (PairError, one line naming
 the two pairs). A node on two pairs' slave faces (a crosspoint) is the first pair's; the
 later pair's dual basis takes it in at its neighbours k, whose rows of Z then hold the
 crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own entries G).
 Each pair has its own normal (+-e_k, any k): the contact set reads each node's normal dof
 (contactset.py: `axes`).
+
+A slave face that is not one plane normal to x, y or z (curved, or flat and tilted) has a
+basis Q_j of its own at each slave node, n_j its averaged normal (pairs_curved.py): D's
++-1 become the blocks Q_j^T, the contact set reads n_j . g_j on the node's dof 2 and the
+gap is n_j . (X_j - sum_l P_jl X_l); q1 faces only, no crosspoints.
 
 Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
 (0), a clamped master component contributes its 0.
@@ -69,6 +74,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact.fem import pairs_crosspoints as crosspoints
+from contact.fem import pairs_curved as curved
+from contact.fem.assembly import orthonormal_nullspace
 from contact.fem.mortar import mortar_matrices
 from contact.fem.mortar_q2 import edge_bends, nine_node_faces
 from contact.fem.pairs_crosspoints import PairError  # noqa: F401  (pairs.PairError)
@@ -116,6 +123,15 @@ def _nine_node(comm, surfaces, roles):
     return out
 
 
+def _in_place(apply, v):
+    """v <- apply(v, out) through a work Vec; returns v."""
+    t = v.duplicate()
+    apply(v, t)
+    t.copy(v)
+    t.destroy()
+    return v
+
+
 def _held(comm, clamped, nodes):
     """The clamped dofs (global) of the vertices `nodes` (global numbers), every rank's:
     whether E leaves out an entry must not hang on which rank owns its column."""
@@ -126,24 +142,8 @@ def _held(comm, clamped, nodes):
 
 #: one contact pair's surfaces: name (its contact part), slave and master (local faces (nf,
 #: 4), counter-clockwise about their body's outward normal), the slave's outward normal
-#: sign e_axis
+#: sign e_axis (axis None: a curved or tilted slave face, a basis per node: pairs_curved.py)
 Surface = namedtuple("Surface", "name slave master axis sign")
-
-
-def _check_nodes(parts):
-    """PairError unless E E = 0 and no row of E is two pairs' (module docstring): no node
-    is a slave node of two pairs (its face nodes), no slave node (a row of E) of one pair
-    a master node (a column of E) of another."""
-    for i, a in enumerate(parts):
-        for b in parts[i + 1:]:
-            if np.intersect1d(a["sid"], b["sid"]).size:
-                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r} share slave "
-                                f"nodes: a node may be the slave node of one pair only")
-        for b in parts:
-            if b is not a and np.intersect1d(a["rows"], b["cols"]).size:
-                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r}: a slave node "
-                                f"of {a['name']!r} is a master node of {b['name']!r} (a slave "
-                                f"face may not be another pair's master face)")
 
 
 class ContactPair:
@@ -165,21 +165,31 @@ class ContactPair:
         self._rows, self.n_nodes = g.getOwnershipRange(), g.getSize() // 3
         g.destroy()
         gidx = np.asarray(dm.getLGMap().getBlockIndices(), dtype=np.int64)
-        parts = [self._surface(comm, gidx, coords, s) for s in surfaces]
+        parts = [self._surface(comm, gidx, coords, s, clamped) for s in surfaces]
         #: the crosspoints' couplings (pairs_crosspoints.py: a node on two pairs' slave
         #: faces is the first's; the later's dual basis takes it in at its neighbours)
         self._moved = crosspoints.take(parts, taken)
+        bent = [p for p in parts if p["Q"] is not None]
+        if bent and self._moved:
+            raise PairError(f"contact pair {bent[0]['name']!r}: a curved or tilted slave face "
+                            f"may not meet another pair's or the foundation's contact face")
+        ids = np.concatenate([p["rows"] for p in bent] + [np.zeros(0, dtype=np.int64)])
+        order = np.argsort(ids)
+        #: the slave nodes with a basis of their own (sorted) and their Q_j (pairs_curved.py)
+        self._curved = (ids[order], np.concatenate([p["Q"][p["ok"]] for p in bent] +
+                                                   [np.zeros((0, 3, 3))])[order])
         self._parts = parts
-        _check_nodes(parts)
+        crosspoints.check_nodes(parts)
         #: the normal n into the slave bodies (the foundation's normal of a one-body scene;
-        #: several pairs: the first's, each pair's own in `pairs`)
-        self.normal, self.axis = parts[0]["normal"], surfaces[0].axis
+        #: several pairs: the first's, each pair's own in `pairs`; a curved pair's: its
+        #: nodes' mean) and the contact set's normal dof there
+        self.normal, self.axis = parts[0]["normal"], parts[0]["axis"]
         #: per pair: name, normal, its covered slave nodes and all its slave face's nodes
         #: (global vertex numbers)
         self.pairs = [{"name": p["name"], "normal": p["normal"], "slave_ids": p["rows"],
                        "n_slave": int(p["rows"].size), "slave_face": p["sid"],
-                       "axis": s.axis, "extra": p.get("extra")}
-                      for p, s in zip(parts, surfaces)]
+                       "axis": p["axis"], "extra": p.get("extra"),
+                       "normals": p["N"]} for p in parts]
         cat = lambda k: np.concatenate([p[k] for p in parts])           # noqa: E731
         #: per slave face node (global vertex number): whether the master covers it, and
         #: its gap n . (X_j - sum_l P_jl X_l)
@@ -205,13 +215,18 @@ class ContactPair:
         self.Z, self.Zinv = (self._assemble(flip, inverse) for inverse in (False, True))
 
     @staticmethod
-    def _surface(comm, gidx, coords, s):
+    def _surface(comm, gidx, coords, s, clamped):
         """One pair's mortar coupling (gathered surfaces: every rank the same): its slave
         face nodes `sid`, which the master covers `ok`, their gaps, E's entries (srow,
         mcol, v: global vertex numbers, P_jl), E's rows and columns, the master face
-        nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis)."""
+        nodes `mid`, the normal n into the slave body and d (-1 where n = -e_axis); a
+        curved pair (s.axis None): its nodes' bases Q and normals N (pairs_curved.py)."""
         xs, fs, sid = _gathered(comm, gidx, coords, s.slave, s.slave.shape[1])
         xm, fm, mid = _gathered(comm, gidx, coords, s.master, s.master.shape[1])
+        if s.axis is None and 9 in (fs.shape[1], fm.shape[1]):
+            raise PairError(f"contact pair {s.name!r}: its slave faces are curved or not "
+                            f"normal to x, y or z, which the q2 element's pairs cannot be "
+                            f"(use -element q1)")
         if 9 in (fs.shape[1], fm.shape[1]):     # (each side 4 or 9 nodes: q1 or q2 bodies)
             (o1, m1), (o2, m2) = (edge_bends(X, s.axis) if X.shape[1] == 9 else (0.0, True)
                                   for X in (xs[fs], xm[fm]))
@@ -225,11 +240,17 @@ class ContactPair:
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
         keep = ok[mt.rows]
         r, c, v = mt.rows[keep], mt.cols[keep], mt.values[keep] / rowsum[mt.rows[keep]]
-        normal = np.zeros(3)
-        normal[s.axis] = -float(s.sign)
         proj = np.zeros((xs.shape[0], 3))
         np.add.at(proj, r, v[:, None] * xm[c])
-        gaps = (xs - proj) @ normal
+        Q = N = None
+        if s.axis is None:
+            held = np.isin(3 * sid[:, None] + np.arange(3), _held(comm, clamped, sid))
+            Q, N, normal = curved.surface_bases(s.name, xs, fs, held, mt.D)
+            gaps = np.einsum("ij,ij->i", xs - proj, N)
+        else:
+            normal = np.zeros(3)
+            normal[s.axis] = -float(s.sign)
+            gaps = (xs - proj) @ normal
         # touching faces: a gap of rounding size has the sign of the summation order, which
         # the partition sets (the surfaces are gathered in rank order); 0 it is, so that the
         # first Newton step's active set is the same on every partition (8 ranks: a node
@@ -239,7 +260,8 @@ class ContactPair:
         return {"name": s.name, "faces": fs, "xs": xs, "D": mt.D,       # (crosspoints)
                 "sid": sid, "ok": ok, "gaps": gaps, "srow": sid[r],
                 "mcol": mid[c], "v": v, "rows": sid[ok], "cols": np.unique(mid[c]),
-                "mid": mid, "normal": normal, "d": -1.0 if s.sign > 0 else 1.0}
+                "mid": mid, "normal": normal, "d": -1.0 if s.sign > 0 else 1.0, "Q": Q,
+                "N": N, "axis": 2 if Q is not None else s.axis}
 
     def weight_off(self, nv_owned, rstart_block):
         """Per owned vertex, what the contact set's lumped weight holds too much at the
@@ -247,6 +269,17 @@ class ContactPair:
         if not self._moved:
             return None
         return crosspoints.weight_off(self._moved, self._parts, nv_owned, rstart_block)
+
+    def clamped_rows(self, rows):
+        """The clamped rows (global, x, y, z) in the loops' basis: a clamped component of a
+        curved pair's slave node is the dof of its basis that is that axis (pairs_curved.py)."""
+        return curved.clamped_rows(*self._curved, rows).astype(PETSc.IntType)
+
+    def bases(self, ids, components):
+        """(m, 3, 3): per contact node (global vertex numbers ids, the contact set's
+        components), row c the direction of its contact-space component c in x, y, z: the
+        axes, or a curved pair's Q_j; None without curved pairs (contactset's axes)."""
+        return curved.bases(*self._curved, ids, components)
 
     def signs(self, ids):
         """D's entry on the normal dof of the slave nodes `ids` (global vertex numbers):
@@ -291,10 +324,17 @@ class ContactPair:
         rows, cols, vals = rows[mine], cols[mine], vals[mine]
         if inverse:                                        # Z^-1 = D (I + G)
             vals = d[rows - lo] * vals
+        dr, dv, (ids, Q) = np.arange(lo, hi), d, self._curved
+        dc = dr
+        if ids.size:                       # curved pairs' blocks Q_j^T (Z^-1: Q_j, -P_jl Q_j)
+            if inverse:
+                rows, cols, vals = curved.turned_rows(ids, Q, rows, cols, vals)
+            flat = ~np.isin(dr // 3, ids)
+            br, bc, bv = curved.diagonal_blocks(ids, Q, lo, hi, inverse)
+            dr, dc, dv = (np.concatenate([x[flat], y]) for x, y in ((dr, br), (dr, bc),
+                                                                   (d, bv)))
         # CSR of the owned rows: D and E's entries (columns sorted per row)
-        allr = np.concatenate([np.arange(lo, hi), rows])
-        allc = np.concatenate([np.arange(lo, hi), cols])
-        allv = np.concatenate([d, vals])
+        allr, allc, allv = (np.concatenate(x) for x in ((dr, rows), (dc, cols), (dv, vals)))
         order = np.lexsort((allc, allr))
         allr, allc, allv = allr[order], allc[order], allv[order]
         indptr = np.concatenate([[0], np.cumsum(np.bincount(allr - lo, minlength=hi - lo))])
@@ -328,10 +368,16 @@ class ContactPair:
                                                  shape=(rows.size, cols.size))
         d = np.ones((rows.size, 3))
         d[slave] = self._d[at[slave]]
+        ids, Q = self._curved
+        k = np.flatnonzero(np.isin(rows, ids))                 # curved: blocks Q_j^T
+        d[k] = 0.0
         v = np.concatenate([d, self._weights[at[slave]][i, j]])
         dof = np.arange(3)
-        Z = sparse.csr_matrix((v.ravel(), ((3 * r[:, None] + dof).ravel(),
-                                           (3 * c[:, None] + dof).ravel())),
+        br, bc, bv = curved.blocks(k, np.searchsorted(cols, rows[k]),
+                                   Q[np.searchsorted(ids, rows[k])].transpose(0, 2, 1))
+        Z = sparse.csr_matrix((np.concatenate([v.ravel(), bv]),
+                               (np.concatenate([(3 * r[:, None] + dof).ravel(), br]),
+                                np.concatenate([(3 * c[:, None] + dof).ravel(), bc]))),
                               shape=(3 * rows.size, 3 * cols.size))
         return rows, cols, Z
 
@@ -397,18 +443,9 @@ class ContactPair:
         of the stiffness assembled in this basis (element_matrices; tests)."""
         return A.ptap(self.Z)          # (petsc_compat: ptap on 3.18 and 3.26)
 
-    @staticmethod
-    def _in_place(apply, v):
-        """v <- apply(v, out) through a work Vec; returns v."""
-        t = v.duplicate()
-        apply(v, t)
-        t.copy(v)
-        t.destroy()
-        return v
-
     def transform_load(self, b):
         """In place: b <- Z^T b."""
-        return self._in_place(self.Z.multTranspose, b)
+        return _in_place(self.Z.multTranspose, b)
 
     def to_displacement(self, xt, out=None):
         """u = Z u~ (a new Vec unless `out`)."""
@@ -418,7 +455,7 @@ class ContactPair:
 
     def from_displacement(self, u):
         """In place: u <- Z^-1 u."""
-        return self._in_place(self.Zinv.mult, u)
+        return _in_place(self.Zinv.mult, u)
 
     def vertex_gaps(self, nv_owned, rstart_block):
         """(gap per owned vertex, covered mask per owned vertex): the pair's gaps at the
@@ -456,17 +493,4 @@ class ContactPair:
                 v.pointwiseMult(v, mask)
                 vecs.append(self.from_displacement(v))
         base.destroy()
-        out = []
-        for v in vecs:                      # modified Gram-Schmidt
-            for q in out:
-                v.axpy(-v.dot(q), q)
-            nrm = v.norm()
-            if nrm > 1e-10:
-                v.scale(1.0 / nrm)
-                out.append(v)
-            else:
-                v.destroy()
-        ns = PETSc.NullSpace().create(vectors=out, comm=coordinates.getComm())
-        for v in out:
-            v.destroy()
-        return ns
+        return orthonormal_nullspace(vecs, coordinates.getComm())

@@ -199,3 +199,19 @@ def weight_off(moved, parts, nv_owned, rstart_block):
         m = (loc >= 0) & (loc < nv_owned)
         out[loc[m]] += b["Dx"][np.searchsorted(b["xid"], jj[m])]
     return out
+
+
+def check_nodes(parts):
+    """PairError unless E E = 0 and no row of E is two pairs' (fem/pairs.py): no node
+    is a slave node of two pairs (its face nodes), no slave node (a row of E) of one pair
+    a master node (a column of E) of another."""
+    for i, a in enumerate(parts):
+        for b in parts[i + 1:]:
+            if np.intersect1d(a["sid"], b["sid"]).size:
+                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r} share slave "
+                                f"nodes: a node may be the slave node of one pair only")
+        for b in parts:
+            if b is not a and np.intersect1d(a["rows"], b["cols"]).size:
+                raise PairError(f"contact pairs {a['name']!r} and {b['name']!r}: a slave node "
+                                f"of {a['name']!r} is a master node of {b['name']!r} (a slave "
+                                f"face may not be another pair's master face)")

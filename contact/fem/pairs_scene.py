@@ -27,9 +27,9 @@ def owned_on(disc, names):
 
 
 def slave_side(disc, name, part):
-    """(axis k, sign s) of a pair's slave faces (disc.parts[name], on the mesh's places):
-    one plane normal to e_k, the body's outward normal s e_k (fem/pairs.py's limitation);
-    SceneError otherwise (a curved face, an inner plane, a plane through a gmsh body)."""
+    """(axis k, sign s) of a pair's slave faces (disc.parts[name], on the mesh's places)
+    where they are one plane normal to e_k, the body's outward normal s e_k; (None, 0)
+    otherwise: a curved or tilted slave face, a basis per node (fem/pairs_curved.py)."""
     mpi, faces, X = disc.comm.tompi4py(), disc.parts[name], disc.coords
     n = fem.face_normals(faces, X)
     k = int(np.argmax(np.abs(mpi.allreduce(n.sum(axis=0)))))
@@ -40,11 +40,7 @@ def slave_side(disc, name, part):
     off = mpi.allreduce(float(np.max(1.0 - s * n[:, k], initial=0.0)), op=MPI.MAX)
     size = mpi.allreduce(float(np.ptp(X, axis=0).max(initial=0.0)), op=MPI.MAX)
     if s == 0 or off > 1e-8 or hi - lo > 1e-9 * max(size, 1e-300):
-        where = f"the plane {part['plane'][0]} = {part['plane'][1]:g}" if "plane" in part \
-            else f"the physical surface {part['physical']!r}"
-        raise SceneError(f"contact pair {name!r}: its slave faces ({where} of body "
-                         f"{part['body']!r}) must be one side of the body, flat and normal "
-                         f"to x, y or z")
+        return None, 0
     return k, int(s)
 
 

@@ -269,8 +269,8 @@ def _bad_geo(path):
     (lambda s, t: s["boundary"].update(
         interface={"type": "contact", "body": "base", "plane": ["x", 0.4],
                    "master": {"body": "punch", "physical": "bottom"}}),
-     "contact pair 'interface': its slave faces (the plane x = 0.4 of body 'base') must "
-     "be one side of the body, flat and normal to x, y or z"),
+     "contact pair 'interface': at its slave node (0.4, 0, 0) its faces face both ways (a "
+     "slave face is one side of its body)"),
     (lambda s, t: s["boundary"]["interface"].update(physical="xmin"),
      "master faces of 'base' never face the slave faces"),
     (lambda s, t: s["boundary"].update(

@@ -101,8 +101,8 @@ def test_patch_fails_without_one_pairs_coupling(comm, monkeypatch):
     from contact.fem import pairs
     real = pairs.ContactPair._surface
 
-    def cut(comm_, gidx, coords, s):
-        out = real(comm_, gidx, coords, s)
+    def cut(comm_, gidx, coords, s, clamped):
+        out = real(comm_, gidx, coords, s, clamped)
         if s.name == "lower":
             out["v"] = 0.0 * out["v"]
         return out

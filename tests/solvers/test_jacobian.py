@@ -16,7 +16,8 @@ term dropped, its sign flipped, c / (1 - c) replaced by c): each fails here.
 Cases: the paper's beam (F = 0.3; F varying in space), a tilted foundation with a varying
 gap, a uniform gap with a body the foundation alone holds (the closing first step), and the
 friction-held block on the incline, and two bodies (a dual-mortar pair; q1, q2 and a q1
-body on a q2 one). On 1 and 2 ranks.
+body on a q2 one; turned by a rotation, the slave face off the axes: a basis per slave
+node). On 1 and 2 ranks.
 """
 import copy
 import os
@@ -123,6 +124,18 @@ def _two_axes():
     return scenes.validate(sc)
 
 
+def _two_bodies_tilted():
+    """_two_bodies turned by a rotation (mesh.rotate; u_D turned): the slave face off the
+    axes, a basis per slave node (fem/pairs_curved.py)."""
+    from contact.geometry import rotation
+    rot = {"axis": [1.0, 2.0, 0.5], "degrees": 30.0}
+    R = rotation(rot["axis"], rot["degrees"])
+    sc = two_blocks(friction=0.3, punch_cells=4, base=((-0.1, -0.1), (1.1, 1.1)),
+                    push=tuple(R @ [0.002, 0.002, -0.004]))
+    sc["mesh"] = {"rotate": rot}
+    return scenes.validate(sc)
+
+
 CASES = {
     "beam_F0.3": lambda: _beam(),
     "beam_F_varying": lambda: _beam("0.1 + 0.4 * x / 3"),
@@ -138,6 +151,7 @@ CASES = {
     "two_bodies_bbar": _two_bodies_bbar,
     "three_bodies": _three_bodies,
     "two_axes": _two_axes,
+    "two_bodies_tilted": _two_bodies_tilted,
 }
 
 
@@ -206,7 +220,8 @@ def test_newton_step_is_the_linearisation(case, storage):
     assert counts["slip"] > 0 and counts["stick"] > 0, counts
     assert counts["stick"] + counts["slip"] == counts["active"], counts
     if case not in ("incline", "two_bodies", "two_bodies_q2", "two_bodies_mixed",
-                    "two_bodies_bbar", "three_bodies", "two_axes"):     # (all in contact)
+                    "two_bodies_bbar", "three_bodies", "two_axes",
+                    "two_bodies_tilted"):                               # (all in contact)
         assert counts["inactive"] > 0, counts
     floor = 1e-13
     # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor
