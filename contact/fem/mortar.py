@@ -117,24 +117,22 @@ def shape(xi):
 def nodal_normals(x, faces):
     """Unit normals at the nodes x (n, 3) of the faces (f, 4): at each node the mean of
     its faces' unit normals there (at a corner: the cross product of the face's two edges
-    from it, next x previous), normalised (Popp et al. 2010); zero at nodes of no face.
-    9-node faces (f, 9): the bilinear face's normal at each node's reference point."""
+    from it, next x previous), normalised (Popp et al. 2010); zero at nodes of no face and
+    where the faces face both ways (their unit normals' sum under half their count: an
+    inner plane's faces, taken from the cells on both sides). 9-node faces (f, 9): the
+    9-node map's normal at each node's reference point."""
     if faces.shape[1] == 9:
-        X, (_, dN) = x[faces[:, :4]], shape(Q9)
-        dx = np.einsum("qad,fai->fqdi", dN, X)
-        c = np.cross(dx[:, :, 0], dx[:, :, 1])
-        c /= np.linalg.norm(c, axis=2, keepdims=True)
-        n = np.zeros_like(x, dtype=float)
-        np.add.at(n, faces.ravel(), c.reshape(-1, 3))
-        norm = np.linalg.norm(n, axis=1, keepdims=True)
-        return n / np.where(norm > 0.0, norm, 1.0)
-    X = x[faces]
-    c = np.cross(np.roll(X, -1, axis=1) - X, np.roll(X, 1, axis=1) - X)
+        X, dN = x[faces], grad9(Q9)
+    else:
+        X, dN = x[faces], shape(Q9[:4])[1]
+    dx = np.einsum("qad,fai->fqdi", dN, X)
+    c = np.cross(dx[:, :, 0], dx[:, :, 1])
     c /= np.linalg.norm(c, axis=2, keepdims=True)
     n = np.zeros_like(x, dtype=float)
     np.add.at(n, faces.ravel(), c.reshape(-1, 3))
+    count = np.bincount(faces.ravel(), minlength=x.shape[0])
     norm = np.linalg.norm(n, axis=1, keepdims=True)
-    return n / np.where(norm > 0.0, norm, 1.0)
+    return n / np.where(norm > 0.5 * count[:, None], norm, np.inf)
 
 
 def dual_coefficients(X):

@@ -17,8 +17,10 @@ Newton from the corners' bilinear inverse), which is the q2 element's own face; 
 displacement's shape functions are of degree 2 (`shape9`: the tensor products of the 1D
 quadratic Lagrange functions), the slave's area element the 9-node map's. The clipping is
 exact where the faces' edges, seen along the normal, are straight: a box's faces, graded
-or not, and a lower_surface face seen along z (mesh/bodies.py moves nodes in z only);
-`edge_bends` measures it, the pairs refuse the rest (fem/pairs.py). Where the edge and
+or not, a lower_surface face seen along z (mesh/bodies.py moves nodes in z only), and a
+curved pair's faces on a cylinder (each seen along its own normal: an arc about the axis
+lies in a plane that holds the normal); `edge_bends` measures it, the pairs refuse the
+rest (fem/pairs.py; a sphere's faces, for one). Where the edge and
 centre nodes are at the corners' midpoints (`midpoint_deviation`: an ungraded box) the
 9-node map is the bilinear one.
 
@@ -75,18 +77,26 @@ def inverse_map9(Q, p, start, iterations=30, tol=1e-14):
 
 
 def edge_bends(X, axis):
-    """How far the 9-node faces X (f, 9, 3), seen along e_axis, are from straight-edged
-    with their parametrisation monotone: the largest distance of an edge node from its
-    edge's chord (relative to the chord's length), and whether every edge node lies in
-    the middle half of its chord (then the edge's quadratic map is one-to-one)."""
+    """How far the 9-node faces X (f, 9, 3), seen along e_axis (axis None: each along its
+    own normal, its corners' diagonals' cross product: a curved pair's), are from
+    straight-edged with their parametrisation monotone: the largest distance of an edge
+    node from its edge's chord (relative to the chord's length), and whether every edge
+    node lies in the middle half of its chord (then the edge's quadratic map is
+    one-to-one)."""
     if X.shape[0] == 0:
         return 0.0, True
-    P = np.delete(X, axis, axis=2)
+    if axis is None:
+        n = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        P = X - np.einsum("fai,fi->fa", X, n)[..., None] * n[:, None]
+    else:
+        P = np.delete(X, axis, axis=2)
     a, b, m = P[:, :4], np.roll(P[:, :4], -1, axis=1), P[:, 4:8]
-    e = b - a
+    e, d = b - a, m - a
     L2 = (e * e).sum(axis=2)
-    t = ((m - a) * e).sum(axis=2) / L2
-    off = np.abs(e[..., 0] * (m - a)[..., 1] - e[..., 1] * (m - a)[..., 0]) / L2
+    t = (d * e).sum(axis=2) / L2
+    cross = np.cross(e, d)
+    off = (np.linalg.norm(cross, axis=-1) if cross.ndim == 3 else np.abs(cross)) / L2
     return float(off.max()), bool(np.all((t > 0.25) & (t < 0.75)))
 
 

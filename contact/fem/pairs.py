@@ -38,7 +38,8 @@ Each pair has its own normal (+-e_k, any k): the contact set reads each node's n
 A slave face that is not one plane normal to x, y or z (curved, or flat and tilted) has a
 basis Q_j of its own at each slave node, n_j its averaged normal (pairs_curved.py): D's
 +-1 become the blocks Q_j^T, the contact set reads n_j . g_j on the node's dof 2 and the
-gap is n_j . (X_j - sum_l P_jl X_l); q1 faces only, no crosspoints.
+gap is n_j . (X_j - sum_l P_jl X_l); no crosspoints; q2 faces where each one's edges
+are straight seen along its own normal (a cylinder's, not a sphere's).
 
 Rows and columns of clamped dofs are left out of E: a clamped slave component stays u~ = u
 (0), a clamped master component contributes its 0.
@@ -223,16 +224,13 @@ class ContactPair:
         curved pair (s.axis None): its nodes' bases Q and normals N (pairs_curved.py)."""
         xs, fs, sid = _gathered(comm, gidx, coords, s.slave, s.slave.shape[1])
         xm, fm, mid = _gathered(comm, gidx, coords, s.master, s.master.shape[1])
-        if s.axis is None and 9 in (fs.shape[1], fm.shape[1]):
-            raise PairError(f"contact pair {s.name!r}: its slave faces are curved or not "
-                            f"normal to x, y or z, which the q2 element's pairs cannot be "
-                            f"(use -element q1)")
         if 9 in (fs.shape[1], fm.shape[1]):     # (each side 4 or 9 nodes: q1 or q2 bodies)
             (o1, m1), (o2, m2) = (edge_bends(X, s.axis) if X.shape[1] == 9 else (0.0, True)
                                   for X in (xs[fs], xm[fm]))
             if max(o1, o2) > STRAIGHT_TOL or not (m1 and m2):
                 raise PairError(f"contact pair {s.name!r}: q2 needs faces whose edges, seen "
-                                f"along the pair's normal, are straight (an edge node off "
+                                f"along the pair's normal (curved: each face's), are "
+                                f"straight (an edge node off "
                                 f"its edge by {max(o1, o2):.1e} of it) with the edge nodes "
                                 f"in their middle halves; use -element q1")
         mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
@@ -245,7 +243,7 @@ class ContactPair:
         Q = N = None
         if s.axis is None:
             held = np.isin(3 * sid[:, None] + np.arange(3), _held(comm, clamped, sid))
-            Q, N, normal = curved.surface_bases(s.name, xs, fs, held, mt.D)
+            Q, N, normal = curved.surface_bases(s.name, xs, mt.normals, held, mt.D)
             gaps = np.einsum("ij,ij->i", xs - proj, N)
         else:
             normal = np.zeros(3)

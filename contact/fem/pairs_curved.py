@@ -4,9 +4,8 @@ tilted): a basis of its own at each slave node (fem/pairs.py).
 A flat pair normal to e_k reads the relative displacement's normal part on the slave
 node's dof k, through Z = D + E, D = diag(+-1) (pairs.py). Elsewhere each slave node j
 has an orthonormal basis Q_j (rows t1, t2, n_j), n_j its averaged normal into the slave
-body: minus the normalised sum of its slave faces' (x2 - x0) x (x3 - x1) (each face's
-outward normal weighted by its area; the nodal normals of Popp, Gee & Wall 2010, computed
-once at set-up: small deformations), and
+body (the mean of its faces' unit normals at the node: fem/mortar.py's nodal_normals,
+Popp et al. 2010; computed once at set-up: small deformations), and
 
     u~_j = Q_j g_j(u),    u_j = Q_j^T u~_j + sum_l P_jl u_l,
 
@@ -18,31 +17,19 @@ t1 . g_j, t2 . g_j, and the gap is n_j . (X_j - sum_l P_jl X_l).
 Clamped components (a symmetry plane through the slave face): at a node with clamped
 components C the normal is projected onto the directions they leave free (a symmetry
 plane contains the normal), and e_c, c in C, are rows of Q_j exactly (t1, then t2), so
-that the clamp keeps its meaning on that dof (`local_clamps`); E leaves them out as on a
+that the clamp keeps its meaning on that dof (`clamped_rows`); E leaves them out as on a
 flat pair. A node clamped in all three components keeps Q_j = I (it is no contact node).
-q1 faces (4 nodes) only: the q2 element's pairs stay flat (pairs.py refuses).
+The q2 element's 9-node faces too where each face's edges, seen along its own normal, are
+straight (a cylinder's: pairs.py checks, mortar_q2.edge_bends); the normal at an edge or
+centre node is the 9-node map's there.
 """
 import numpy as np
 
 from contact.fem.pairs_crosspoints import PairError
 
-#: a node's normal sum below this fraction of its faces' summed areas: its faces face
-#: both ways (an inner plane of a body), or the clamps leave no normal
+#: a node's normal, projected off its clamped components, shorter than this: the clamps
+#: leave it no normal
 ONE_SIDE = 0.5
-
-
-def nodal_normals(xs, fs):
-    """(unit normals into the slave body (n, 3), one_sided (n,)) at the nodes xs of the
-    4-node faces fs, counter-clockwise about their outward normal. one_sided: the sum
-    of the node's faces' area vectors is at least ONE_SIDE of their summed lengths."""
-    X = xs[fs]
-    c = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
-    acc, size = np.zeros((xs.shape[0], 3)), np.zeros(xs.shape[0])
-    for k in range(fs.shape[1]):
-        np.add.at(acc, fs[:, k], c)
-        np.add.at(size, fs[:, k], np.linalg.norm(c, axis=1))
-    nrm = np.linalg.norm(acc, axis=1)
-    return -acc / np.maximum(nrm, 1e-300)[:, None], nrm >= ONE_SIDE * size
 
 
 def node_bases(normals, clamped):
@@ -103,13 +90,14 @@ def bases(ids, Q, nodes, components):
     return out
 
 
-def surface_bases(name, xs, fs, held, D):
-    """(Q, N, mean normal) of a pair's slave face nodes xs (faces fs, clamped components
-    held (n, 3), mortar weights D): node_bases of nodal_normals, and the D-weighted mean
+def surface_bases(name, xs, outward, held, D):
+    """(Q, N, mean normal) of a pair's slave face nodes xs (their outward nodal normals,
+    fem/mortar.py's, 0 where the faces face both ways; clamped components held (n, 3),
+    mortar weights D): node_bases of the normals into the body, and the D-weighted mean
     normal (e_z where it almost vanishes: a closed face); PairError naming the first node
     whose faces face both ways or whose clamps leave no normal."""
-    N, one = nodal_normals(xs, fs)
-    Q, N, ok = node_bases(N, held)
+    one = np.linalg.norm(outward, axis=1) > 0.5
+    Q, N, ok = node_bases(-outward, held)
     if not (one & ok).all():
         i = int(np.argmin(one & ok))
         X = xs[i]

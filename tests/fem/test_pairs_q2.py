@@ -229,8 +229,9 @@ def test_patch_q2_graded(comm, friction):
 
 
 @pytest.mark.parametrize("change, words", [
-    (lambda s: s.update(side_pair("q2")), "q2 needs faces whose edges, seen along the "
-                                          "pair's normal, are straight"),
+    (lambda s: s.update(side_pair("q2")), r"q2 needs faces whose edges, seen along the "
+                                          r"pair's normal \(curved: each face's\), are "
+                                          r"straight"),
     (lambda s: s["mesh"].update(element="q3"), "several bodies has the auto, q1, q2, bbar, "
                                                "q2p1 element, got 'q3'"),
     (lambda s: (s["bodies"]["punch"].update(lower_surface="0.02 * x * x"),

@@ -136,6 +136,18 @@ def _two_bodies_tilted():
     return scenes.validate(sc)
 
 
+def _two_bodies_q2_tilted():
+    """_two_bodies_q2 turned as _two_bodies_tilted (9-node faces, a basis per node)."""
+    from contact.geometry import rotation
+    sc = copy.deepcopy(_two_bodies_q2())
+    rot = {"axis": [1.0, 2.0, 0.5], "degrees": 30.0}
+    R = rotation(rot["axis"], rot["degrees"])
+    sc["mesh"]["rotate"] = rot
+    top = sc["boundary"]["top"]
+    top["displacement"] = [float(c) for c in R @ np.asarray(top["displacement"])]
+    return scenes.validate(sc)
+
+
 CASES = {
     "beam_F0.3": lambda: _beam(),
     "beam_F_varying": lambda: _beam("0.1 + 0.4 * x / 3"),
@@ -152,6 +164,7 @@ CASES = {
     "three_bodies": _three_bodies,
     "two_axes": _two_axes,
     "two_bodies_tilted": _two_bodies_tilted,
+    "two_bodies_q2_tilted": _two_bodies_q2_tilted,
 }
 
 
@@ -221,7 +234,7 @@ def test_newton_step_is_the_linearisation(case, storage):
     assert counts["stick"] + counts["slip"] == counts["active"], counts
     if case not in ("incline", "two_bodies", "two_bodies_q2", "two_bodies_mixed",
                     "two_bodies_bbar", "three_bodies", "two_axes",
-                    "two_bodies_tilted"):                               # (all in contact)
+                    "two_bodies_tilted", "two_bodies_q2_tilted"):       # (all in contact)
         assert counts["inactive"] > 0, counts
     floor = 1e-13
     # second order: e(t) / t falls with t (10x per decade), or e is at the rounding floor
