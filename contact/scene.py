@@ -25,7 +25,7 @@ NAMED = options.NAMED
 DEFAULT_SCENE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
                              "paper_beam.yaml")
 
-PART_TYPES = ("dirichlet", "contact", "traction", "symmetry")
+PART_TYPES = ("dirichlet", "contact", "traction", "pressure", "symmetry")
 MESH_TYPES = ("box", "file", "gmsh")
 
 #: the keys a scene may have, per section (anything else is a typo or unsupported)
@@ -44,9 +44,10 @@ SCHEMA = {
                "uzawa_max_it", "fp_max_it", "ssn_max_it", "newton_rtol", "newton_max_it",
                "mode", "uzawa_inner",
                "c2f_levels", "check_tol"),
-    "part": ("plane", "physical", "type", "traction", "components", "displacement", "ramp"),
-    "body part": ("plane", "physical", "type", "traction", "components", "displacement",
-                  "ramp", "body", "master", "friction"),
+    "part": ("plane", "physical", "type", "traction", "pressure", "components",
+             "displacement", "ramp"),
+    "body part": ("plane", "physical", "type", "traction", "pressure", "components",
+                  "displacement", "ramp", "body", "master", "friction"),
 }
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -420,6 +421,14 @@ def _rest(scene):
                                  f"value], got {_shown(plane)}")
         if t == "traction":
             _numbers(part.get("traction"), 3, f"boundary part {name!r}: traction")
+        if t == "pressure" and not _number(part.get("pressure")):
+            raise SceneError(f"boundary part {name!r}: pressure must be a finite number (the "
+                             f"traction -p n, n the face's outward normal), got "
+                             f"{_shown(part.get('pressure'))}")
+        for key in ("traction", "pressure"):
+            if key in part and t != key:
+                raise SceneError(f"boundary part {name!r}: {key} belongs to {key} parts, "
+                                 f"not {t}")
         if t == "dirichlet":
             comps = part.setdefault("components", ["x", "y", "z"])
             if not (isinstance(comps, list) and comps and
@@ -439,9 +448,9 @@ def _rest(scene):
 
 def _ramp(part, name):
     """ramp: [t0, t1], 0 <= t0 < t1 <= 1: the part's load grows from 0 at t0 to full at t1."""
-    if part["type"] not in ("traction", "dirichlet"):
-        raise SceneError(f"boundary part {name!r}: ramp belongs to traction and dirichlet "
-                         f"parts, not {part['type']}")
+    if part["type"] not in ("traction", "pressure", "dirichlet"):
+        raise SceneError(f"boundary part {name!r}: ramp belongs to traction, pressure and "
+                         f"dirichlet parts, not {part['type']}")
     r = _numbers(part["ramp"], 2, f"boundary part {name!r}: ramp")
     if not 0.0 <= r[0] < r[1] <= 1.0:
         raise SceneError(f"boundary part {name!r}: ramp [t0, t1] needs 0 <= t0 < t1 <= 1 "

@@ -533,6 +533,9 @@ def cases_bodies():
              for f in ("0", "0.3", "1") for n in (1, 2, 4)]
     rows += [Case("bodies-shrink-fit-refined", "the shrink fit refined twice from Nd = 1, "
                   "coarse-to-fine", fit + ["-mesh_refine", "2", "-c2f_levels", "2"])]
+    rows += [Case(f"bodies-shrink-fit-q2-F{f}-nd{n}", f"the shrink fit with q2, F = {f}, "
+                  f"Nd = {n}", fit + nd(n) + ["-friction", f, "-element", "q2"])
+             for f in ("0", "0.3") for n in (1, 2)]
     return rows
 
 
@@ -789,8 +792,8 @@ GROUPS = {
                "(punch_on_plate_mixed.yaml), F = 0.3 and 1, Nd = 1, 2; a rubber gasket between "
                "steel parts (gasket.yaml: E 2.1e4 times the steel's) as q1, bbar, q2 and "
                "q2p1, nu = 0.49 and 0.4999, Nd = 1, 2, and F = 0, 1; a shrink fit of two "
-               "tubes (shrink_fit.yaml: a curved slave face), F = 0 to 1, Nd = 1, 2, 4, and "
-               "refined twice from Nd = 1.", cases_bodies),
+               "tubes (shrink_fit.yaml: a curved slave face), F = 0 to 1, Nd = 1, 2, 4, "
+               "refined twice from Nd = 1, and q2 at F = 0, 0.3, Nd = 1, 2.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),

@@ -108,7 +108,7 @@ CASES = [
     ("misspelled-key", lambda t: ["-scene", scene_file(t, _rename("material", "materail"))],
      "unknown key 'materail'"),
     ("unknown-part-key", lambda t: ["-scene", scene_file(
-        t, _set(1.0, "boundary", "top", "pressure"))], "unknown key 'pressure'"),
+        t, _set(1.0, "boundary", "top", "tracton"))], "unknown key 'tracton'"),
     ("wrong-type-option", lambda t: ["-nd", "2.5"], "cannot read '2.5' as int"),
     ("wrong-type-scene", lambda t: ["-scene", scene_file(t, _set("abc", "material",
                                                                   "young"))],

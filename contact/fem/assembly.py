@@ -327,16 +327,22 @@ def local_to_global(dm, local_array, gvec=None):
     return gvec
 
 
-def load_vector(dm, conn, coords, tractions, body_force, roles=None, linear=None):
-    """b: tractions [(faces (nf,4), p (3,))] and a constant body force f (3,) on the
-    elements conn (n, 8) or (n, 27); roles: nodal_face_weights' (q2); linear: (n,) the
-    elements (n, 27) that are q1's (a q1 body beside q2 bodies), or None."""
+def load_vector(dm, conn, coords, tractions, body_force, roles=None, linear=None,
+                pressures=()):
+    """b: tractions [(faces (nf,4), p (3,))], pressures [(faces, p)] (the traction -p n, n
+    the faces' outward normal: int N_a n ds per node, fem/element.py) and a constant body
+    force f (3,) on the elements conn (n, 8) or (n, 27); roles: nodal_face_weights' (q2);
+    linear: (n,) the elements (n, 27) that are q1's (a q1 body beside q2 bodies), or
+    None."""
     nv = coords.shape[0]
     loc = np.zeros((nv, 3))
     for faces, p in tractions:
         p = np.asarray(p, dtype=float)
         if faces.shape[0] and np.any(p != 0.0):
             loc += nodal_face_weights(faces, coords, roles)[:, None] * p[None, :]
+    for faces, p in pressures:
+        if faces.shape[0] and p != 0.0:
+            loc -= float(p) * nodal_face_weights(faces, coords, roles, vector=True)
     f = np.asarray(body_force, dtype=float)
     if np.any(f != 0.0) and conn.shape[0]:
         wv = np.zeros(nv)

@@ -387,7 +387,7 @@ class Discretisation:
             self.u_D = self.to_frame(fem.dirichlet_values(dm, coords.shape[0],
                                                           [c for _, c in named]))
         ramps = sorted({tuple(p.get("ramp", DEFAULT_RAMP)) for p in bnd.values()
-                        if p["type"] in ("traction", "dirichlet")} | {DEFAULT_RAMP})
+                        if p["type"] in ("traction", "pressure", "dirichlet")} | {DEFAULT_RAMP})
         self.load_groups = []
         for ramp in ramps:
             mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
@@ -395,7 +395,9 @@ class Discretisation:
                                  [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
                                   if bnd[n]["type"] == "traction"],
                                  body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0],
-                                 self.roles, self.linear)
+                                 self.roles, self.linear,
+                                 [(self.parts[n], bnd[n]["pressure"]) for n in sorted(mine)
+                                  if bnd[n]["type"] == "pressure"])
             if self.pair is not None:            # the loops' basis: Z^T b (pairs.py)
                 self.pair.transform_load(bg)
             self.to_frame(bg)

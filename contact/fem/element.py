@@ -367,8 +367,10 @@ def element_volume_weights(X, element=None):
     return np.einsum("ga,cg->ca", _RULES[X.shape[1]][0], wdet)
 
 
-def face_weights(Xf):
-    """int_face N_a ds for bilinear quadrilateral faces Xf (f, 4, 3): (f, 4).
+def face_weights(Xf, vector=False):
+    """int_face N_a ds for bilinear quadrilateral faces Xf (f, 4, 3): (f, 4); vector: int_face
+    N_a n ds, n the outward unit normal (the faces counter-clockwise about it): (f, 4, 3),
+    exact (2 x 2 Gauss points: N_a (x_s x x_t) is bilinear times bilinear).
 
     For rectangles this is area/4 per corner: the trapezoidal (lumped) rule.
     """
@@ -378,6 +380,8 @@ def face_weights(Xf):
     dNt = _QUAD_REF[None, :, 1] * (1 + s[:, None] * _QUAD_REF[None, :, 0]) / 4
     xs = np.einsum("ga,fai->fgi", dNs, Xf)
     xt = np.einsum("ga,fai->fgi", dNt, Xf)
+    if vector:
+        return np.einsum("ga,fgi->fai", N, np.cross(xs, xt))
     area = np.linalg.norm(np.cross(xs, xt), axis=2)     # (f, g)
     return np.einsum("ga,fg->fa", N, area)
 
@@ -388,30 +392,35 @@ def face_weights(Xf):
 _Q2_FACE_SHARE = np.array([1.0 / 9.0, 4.0 / 9.0 / 2.0, 16.0 / 9.0 / 4.0])
 
 
-def q2_face_weights(Xf, roles):
+def q2_face_weights(Xf, roles, vector=False):
     """int_face N_a ds of the 9-node faces by Gauss-Lobatto (exact for planar faces), as
     each refined quadrilateral Xf (f, 4, 3) contributes to its corners of roles (f, 4)
     (Q2_ROLE: 0, 1, 2): (f, 4). The 9-node face's |J| at a node is that of a refined
     quadrilateral's bilinear map at the same corner times 4: |e1 x e2| of the
-    quadrilateral's two edges from that corner."""
+    quadrilateral's two edges from that corner. vector: int_face N_a n ds (f, 4, 3), J's
+    vector e_next x e_prev (outward: the quadrilaterals counter-clockwise about it)."""
     e_next = np.roll(Xf, -1, axis=1) - Xf
     e_prev = np.roll(Xf, 1, axis=1) - Xf
-    jac = np.linalg.norm(np.cross(e_next, e_prev), axis=2)        # (f, 4)
+    jac = np.cross(e_next, e_prev)                                # (f, 4, 3)
     if np.any(roles > 2):
         raise ValueError("a q2 face node cannot be an element's centre")
-    return _Q2_FACE_SHARE[roles] * jac
+    if vector:
+        return _Q2_FACE_SHARE[roles][..., None] * jac
+    return _Q2_FACE_SHARE[roles] * np.linalg.norm(jac, axis=2)
 
 
-def _q2_face_jacobians(faces, coords, roles):
+def _q2_face_jacobians(faces, coords, roles, vector=False):
     """|J| of the 9-node faces at the corners of their refined quadrilaterals faces (f, 4)
     (each face's 4 quadrilaterals, found by its centre node, role 2), from the 3 nodes of
     each line through a node: x_xi = (-3 x_0 + 4 x_1 - x_2) / 2 at an end, (x_2 - x_0) / 2
     in the middle, the line's far nodes those of the quadrilaterals sharing an edge node
     (the corner of the one across e1 ends c's line through e1, its other edge node is
     across m from e2). Quadrilaterals of a face not given whole:
-    q2_face_weights' |J| (exact where a face's middle nodes are its edges' midpoints)."""
+    q2_face_weights' |J| (exact where a face's middle nodes are its edges' midpoints).
+    vector: J's vectors (f, 4, 3), outward (each oriented as q2_face_weights' there)."""
     X = coords[faces]
-    jac = q2_face_weights(X, roles) / _Q2_FACE_SHARE[np.minimum(roles, 2)]
+    share = _Q2_FACE_SHARE[np.minimum(roles, 2)]
+    jac = q2_face_weights(X, roles, vector) / (share[..., None] if vector else share)
     k = np.argmin(roles, axis=1)                            # the face corner first
     q = np.take_along_axis(faces, (k[:, None] + np.arange(4)) % 4, axis=1)   # c e1 m e2
     if not np.array_equal(np.sort(roles, axis=1), np.tile([0, 1, 1, 2], (len(faces), 1))):
@@ -435,29 +444,38 @@ def _q2_face_jacobians(faces, coords, roles):
         other = np.where(nb[..., 1] == Q[..., e], nb[..., 3], nb[..., 1])
         return coords[nb[..., 0]], coords[other]
     (C1, O2), (C2, O1) = neighbour(1), neighbour(3)
-    norm = lambda a, b: np.linalg.norm(cross3(a, b), axis=-1) / 4.0    # noqa: E731
+    norm = (lambda a, b: cross3(a, b) / 4.0) if vector else \
+        (lambda a, b: np.linalg.norm(cross3(a, b), axis=-1) / 4.0)      # noqa: E731
     J = np.stack([norm(-3 * C + 4 * E1 - C1, -3 * C + 4 * E2 - C2),
                   norm(C1 - C, -3 * E1 + 4 * M - O1), norm(E1 - O1, E2 - O2),
                   norm(C2 - C, -3 * E2 + 4 * M - O2)], axis=2)      # at c, e1, m, e2
     back = (np.arange(4)[None, :] - k[sel.ravel(), None]) % 4       # q's order -> faces'
-    jac[sel.ravel()] = np.take_along_axis(J.reshape(-1, 4), back, axis=1)
+    if not vector:
+        jac[sel.ravel()] = np.take_along_axis(J.reshape(-1, 4), back, axis=1)
+        return jac
+    J = np.take_along_axis(J.reshape(-1, 4, 3), back[..., None], axis=1)
+    flip = np.einsum("fai,fai->fa", J, jac[sel.ravel()]) < 0.0      # (the lines' order)
+    jac[sel.ravel()] = np.where(flip[..., None], -J, J)
     return jac
 
 
-def nodal_face_weights(faces, coords, roles=None):
+def nodal_face_weights(faces, coords, roles=None, vector=False):
     """Per local vertex: sum over the given faces of int N_a ds (nv,). roles: per local
     vertex, its Q2_ROLE for the q2 element (faces are then its refined quadrilaterals;
-    a q1 body's vertices Q1_ROLE: its faces are q1's), None for q1 and bbar."""
-    w = np.zeros(coords.shape[0])
+    a q1 body's vertices Q1_ROLE: its faces are q1's), None for q1 and bbar. vector: of
+    int N_a n ds, n the faces' outward unit normal (nv, 3): a pressure's load."""
+    k = (3,) if vector else ()
+    w = np.zeros((coords.shape[0],) + k)
     if faces.shape[0]:
         if roles is None:
-            fw = face_weights(coords[faces])
+            fw = face_weights(coords[faces], vector)
         else:
             r = roles[faces]
             q1 = np.all(r == Q1_ROLE, axis=1)
-            fw = np.zeros(faces.shape)
-            fw[q1] = face_weights(coords[faces[q1]])
-            fw[~q1] = _Q2_FACE_SHARE[r[~q1]] * _q2_face_jacobians(faces[~q1], coords,
-                                                                  r[~q1])
-        np.add.at(w, faces.ravel(), fw.ravel())
+            fw = np.zeros(faces.shape + k)
+            fw[q1] = face_weights(coords[faces[q1]], vector)
+            share = _Q2_FACE_SHARE[r[~q1]]
+            fw[~q1] = (share[..., None] if vector else share) * _q2_face_jacobians(
+                faces[~q1], coords, r[~q1], vector)
+        np.add.at(w, faces.ravel(), fw.reshape((-1,) + k))
     return w

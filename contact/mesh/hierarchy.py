@@ -366,9 +366,10 @@ class QuadraticCells:
         self.roles[conn.ravel()] = np.tile(Q2_ROLE, ncc)
 
     def refined_faces(self, cells, k):
-        """The fine quadrilaterals (4 n, 4) (cyclic, local fine vertices) of face k
-        (HEX_FACES) of elements `cells` (n,): a gmsh physical group's faces, marked on the
-        element mesh, on the node mesh."""
+        """The fine quadrilaterals (4 n, 4) (local fine vertices) of face k (HEX_FACES) of
+        elements `cells` (n,): a gmsh physical group's faces, marked on the element mesh,
+        on the node mesh; counter-clockwise about the face's outward normal in the
+        reference cell (a pressure's load reads it: fem/element.py)."""
         quads = np.empty((6, 4, 4), dtype=np.intp)         # per face k: 4 quads of positions
         index = {tuple(r): q for q, r in enumerate(Q2_REF.astype(int))}
         for f in range(6):
@@ -379,6 +380,9 @@ class QuadraticCells:
                 np.arange(3) == d, ref[0, d], np.where(np.arange(3) == a, i, j)))]
             quads[f] = [[at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]
                         for i in (-1, 0) for j in (-1, 0)]
+            # (i, j) turns about e_a x e_b = (-1)^d e_d; outward is sign(ref[0, d]) e_d
+            if (-1) ** d * ref[0, d] < 0:
+                quads[f] = quads[f][:, ::-1]
         return self.conn[np.asarray(cells)[:, None, None], quads[np.asarray(k)]].reshape(-1, 4)
 
 
