@@ -353,7 +353,8 @@ class Discretisation:
                                                                  axes)
         self.cs = ContactSet(dm, coords, np.concatenate(cfaces), self.clamped,
                              con.get("friction", 0.0), template,
-                             normal=self.normal if self.pair is None else np.eye(3)[self.pair.axis],
+                             normal=(self.normal if self.pair is None else
+                                     np.eye(3)[self.pair.axis]),
                              point=fd.get("point", [0.0, 0.0, 0.0]), gap=gap,
                              roles=self.roles, covered=covered, axes=axes)
         if self.bodies is not None:              # a contact part's own friction

@@ -28,12 +28,12 @@ nodes only.
 Several pairs (a stack of blocks): E is the sum of each pair's, D flips each pair's slave
 nodes where its n = -e_k. That stays Z = D + E with the inverse above as long as no node is
 the slave node of two pairs (E's rows would add) and no slave node of one pair is a master
-node of another (E E = 0); pairs_crosspoints.check_nodes refuses the latter (PairError, one line naming
-the two pairs). A node on two pairs' slave faces (a crosspoint) is the first pair's; the
-later pair's dual basis takes it in at its neighbours k, whose rows of Z then hold the
-crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own entries G).
-Each pair has its own normal (+-e_k, any k): the contact set reads each node's normal dof
-(contactset.py: `axes`).
+node of another (E E = 0); pairs_crosspoints.check_nodes refuses the latter (PairError,
+one line naming the two pairs). A node on two pairs' slave faces (a crosspoint) is the
+first pair's; the later pair's dual basis takes it in at its neighbours k, whose rows of Z
+then hold the crosspoint's too (pairs_crosspoints.py: Z^-1 = D (I + G) built from its own
+entries G). Each pair has its own normal (+-e_k, any k): the contact set reads each node's
+normal dof (contactset.py: `axes`).
 
 A slave face that is not one plane normal to x, y or z (curved, or flat and tilted) has a
 basis Q_j of its own at each slave node, n_j its averaged normal (pairs_curved.py): D's
