@@ -29,7 +29,8 @@ TESTS4   ?= tests/test_ranks.py tests/mesh/test_transfer.py tests/solvers/test_m
 	tests/solvers/test_jacobian.py tests/solvers/test_newton_globalisation.py \
 	tests/fem/test_element.py tests/solvers/test_mixed.py tests/fem/test_quadratic.py \
 	tests/solvers/test_line_smoother.py tests/fem/test_pairs.py \
-	tests/fem/test_pairs_crosspoints.py tests/fem/test_pairs_lockfree.py
+	tests/fem/test_pairs_crosspoints.py tests/fem/test_pairs_lockfree.py \
+	tests/fem/test_pairs_curved.py
 
 # $(call apt_ensure,PACKAGES): install the Debian packages not installed yet (apt-get update
 # only when one is missing)
@@ -139,7 +140,8 @@ TESTS_CURRENT  ?= tests/test_expression.py tests/mesh/test_mesh.py tests/mesh/te
 	tests/io/test_output_files.py tests/solvers/test_friction_held.py \
 	tests/solvers/test_newton_globalisation.py tests/solvers/test_device_paths.py \
 	tests/mesh/test_refine.py tests/fem/test_stencil.py tests/solvers/test_line_smoother.py \
-	tests/fem/test_pairs.py tests/solvers/test_newton_ksp.py tests/fem/test_pairs_lockfree.py
+	tests/fem/test_pairs.py tests/solvers/test_newton_ksp.py tests/fem/test_pairs_lockfree.py \
+	tests/fem/test_pairs_curved.py tests/fem/test_pressure.py
 TESTS_CURRENT2 ?= tests/test_ranks.py tests/solvers/test_multigrid.py tests/solvers/test_mixed.py \
 	tests/solvers/test_coulomb.py tests/solvers/test_line_smoother.py
 .PHONY: test-current petsc-current
