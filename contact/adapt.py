@@ -23,10 +23,12 @@ slabs those of its box (a curved lower_surface moves z, not the slabs); no local
 (the element's).
 
 A gmsh or file mesh that is a tensor-product hexahedral mesh of a box (gmsh's extruded
-layers or transfinite volumes: mesh/grading.py lattice_planes; refused otherwise) grades as
+layers or transfinite volumes: mesh/grading.py lattice_planes) grades as
 a box, its lattice the file's planes (refined with -mesh_refine): the pilot is the mesh
 itself (the file has no coarser copy), and the points re-place those planes along each
-axis, the file's own spacing there replaced.
+axis, the file's own spacing there replaced. A hexahedral mesh of a box on no lattice
+(unstructured) is graded by a per-axis map of the box (grading.box_planes), the
+indicator summed in equal slabs (estimate.file_bins).
 
 With -error_target (cli.py) there is no pilot after the first run: each run's grading
 comes from the indicator of the run before it (`design(scene, problem)`), so the grading

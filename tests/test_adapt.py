@@ -345,6 +345,31 @@ def test_auto_grading_of_a_gmsh_lattice(tmp_path):
 
 
 @skip_in_parallel
+def test_auto_grading_of_an_unstructured_mesh(tmp_path):
+    """-mesh_grading auto on a hexahedral mesh of the beam that is no lattice
+    (meshes/beam_unstructured.geo at nd 4: its x-z section gmsh's unstructured
+    quadrilaterals; -mesh_refine 1), graded by a per-axis map of its box (grading.py
+    box_planes; the indicator in equal slabs by the cells' centroids, estimate.file_bins):
+    aimed at the contact force, its error against report.md's continuum value at most
+    half the same mesh's ungraded (measured 0.26 % against 0.72 %), the cells denser at
+    the clamp (x = 0) than where they are largest."""
+    sc = gmsh_beam(4)
+    sc["mesh"]["file"] = f"{ROOT}/meshes/beam_unstructured.geo"
+    scene = tmp_path / "unstructured.yaml"
+    scene.write_text(yaml.safe_dump(sc))
+    common = ["-scene", scene, "-mesh_refine", 1]
+    u, _ = _summary(tmp_path / "u", common)
+    g, out = _summary(tmp_path / "g", [*common, "-mesh_grading", "auto", "-error_quantity",
+                                       "force"])
+    assert "grading from the error indicator at Nd = 8" in out
+    err = {k: abs(s["contact_result"]["normal"] - N_STAR) / N_STAR for k, s in
+           (("uniform", u), ("auto", g))}
+    assert err["auto"] < 0.5 * err["uniform"], err
+    h = np.diff(g["grading"]["axes"]["x"]["points"])
+    assert h[0] < 0.5 * h.max()                          # denser at the clamp, x = 0
+
+
+@skip_in_parallel
 @pytest.mark.parametrize("quantity, tol, rel", [("energy", 1e-8, 1e-8), ("force", 1e-5, 1e-6)])
 def test_auto_grading_same_on_two_ranks(tmp_path, quantity, tol, rel):
     """The pilot's indicator and so the points are the same on 1 and 2 ranks (1e-8; aimed

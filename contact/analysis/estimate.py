@@ -105,7 +105,10 @@ def slab_errors(problem, axis, cells=None, coords=None):
     them) and the indicator's part along the axis (cell_indicator's D[:, axis]) summed
     over each slab's cells, on every rank. For contact/adapt.py (mesh.grading auto).
     cells: only these local cells (a body's), their vertices' planes; coords: the local
-    vertices' places to read the planes from (default the mesh's)."""
+    vertices' places to read the planes from (default the mesh's). A mesh whose vertices
+    lie on no lattice of planes (an unstructured hexahedral mesh of a box: file_bins):
+    equal slabs, about as many as its cells along the axis, each cell in the slab of its
+    centroid."""
     comm = problem.comm.tompi4py()
     x = (problem.coords if coords is None else coords)[:, axis]
     conn = problem.conn if cells is None else problem.conn[cells]
@@ -117,12 +120,34 @@ def slab_errors(problem, axis, cells=None, coords=None):
     planes = np.unique(np.concatenate(comm.allgather(mine)))
     span = planes[-1] - planes[0]
     edges = planes[np.concatenate([[True], np.diff(planes) > 1e-9 * span])]
+    bins = file_bins(problem) if cells is None and coords is None else None
+    if bins is not None:
+        edges = np.linspace(planes[0], planes[-1], bins[axis] + 1)
     E = np.zeros(edges.size - 1)
     if conn.shape[0]:
         cen = x[conn].mean(axis=1)
         j = np.clip(np.searchsorted(edges, cen) - 1, 0, E.size - 1)
         E = np.bincount(j, weights=part, minlength=E.size)
     return edges, comm.allreduce(E)
+
+
+def file_bins(problem):
+    """None where the mesh's vertices lie on a lattice of planes (a box, or a tensor-product
+    file mesh); else, per axis, about its cells along it: the extent over the mean cell's
+    edge, (volume / cells)^(1/3), at least 4 (an unstructured mesh of a box, graded by a
+    per-axis map: mesh/grading.py box_planes)."""
+    comm = problem.comm.tompi4py()
+    xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)    # owned vertices
+    counts, ext = [], []
+    for a in range(3):
+        p = np.unique(np.concatenate(comm.allgather(np.unique(xyz[:, a]))))
+        span = p[-1] - p[0] if p.size else 0.0
+        counts.append(int(np.count_nonzero(np.diff(p) > 1e-9 * span)) + 1)
+        ext.append(span)
+    if int(np.prod(counts)) == problem.coordinates.getSize() // 3:
+        return None
+    h = (float(np.prod(ext)) / comm.allreduce(problem.conn.shape[0])) ** (1.0 / 3.0)
+    return [max(4, int(round(e / h))) for e in ext]
 
 
 def indicator_summary(problem):

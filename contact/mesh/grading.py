@@ -36,7 +36,9 @@ quadratic interpolant of phi, positive where phi' varies little over an element)
 """
 import numpy as np
 
-from contact.mesh.plex import HEX_REF, MeshError
+from mpi4py import MPI
+
+from contact.mesh.plex import HEX_REF, MeshError, boundary_faces
 
 AXES = ("x", "y", "z")
 KINDS = ("bump", "progression", "points")
@@ -186,7 +188,7 @@ def lattice_planes(coords, vertices, comm):
     rank's) of its vertices `coords` (local, (n, 3)), which must be the whole lattice of
     those planes (`vertices`, the global count, their product: a tensor-product hexahedral
     mesh of a box, as gmsh's extruded layers and transfinite volumes give); MeshError
-    otherwise, naming the counts."""
+    otherwise, naming the counts (the hierarchy then takes box_planes)."""
     mpi = comm.tompi4py()
     planes = []
     for a in range(3):
@@ -200,6 +202,31 @@ def lattice_planes(coords, vertices, comm):
                         f"this one has {vertices} vertices on {' x '.join(map(str, counts))} "
                         f"planes")
     return planes
+
+
+def box_planes(level, comm):
+    """A gmsh or file mesh off any lattice graded (mesh.grading): per axis its extent's two
+    planes, [lower, upper], so that place_lattice maps it as one slab (a per-axis
+    coordinate map of the box: cells stay whole, their vertices move), where the mesh is a
+    box: the cell faces on the six planes of its bounding box cover them (their areas
+    summed over ranks, to 1e-9); MeshError otherwise (a curved face, a hole)."""
+    mpi, x, conn = comm.tompi4py(), level.reference, level.conn
+    lo, hi = np.empty(3), np.empty(3)
+    mpi.Allreduce(x.min(axis=0) if x.size else np.full(3, np.inf), lo, op=MPI.MIN)
+    mpi.Allreduce(x.max(axis=0) if x.size else np.full(3, -np.inf), hi, op=MPI.MAX)
+    tol = 1e-9 * float(np.max(hi - lo))
+    for a in range(3):
+        side = np.prod(np.delete(hi - lo, a))
+        for v in (lo[a], hi[a]):
+            f = x[boundary_faces(conn, x, a, v, tol)]
+            c = np.cross(f[:, 2] - f[:, 0], f[:, 3] - f[:, 1])
+            area = mpi.allreduce(0.5 * float(np.linalg.norm(c, axis=1).sum()))
+            if abs(area - side) > 1e-9 * side:
+                raise MeshError(f"mesh.grading on a gmsh or file mesh needs a hexahedral mesh "
+                                f"of a box (a tensor-product one, or any: a per-axis map); "
+                                f"this one's faces on its bounding box's plane {AXES[a]} = "
+                                f"{v:g} cover {area:.6g} of that side's {side:.6g}")
+    return [np.array([lo[a], hi[a]]) for a in range(3)]
 
 
 def place_lattice(level, planes, grading):

@@ -48,7 +48,8 @@ from contact.mesh.cad import snap as snap_cad
 from contact.mesh.bodies import create_mesh as create_bodies, mapped, read as read_body
 from contact.mesh.bodies import place as place_bodies
 from contact.mesh.labels import copy_cell_labels, mark_surfaces, surface_masks
-from contact.mesh.grading import lattice_planes, local_coordinates, place, place_lattice
+from contact.mesh.grading import (box_planes, lattice_planes, local_coordinates, place,
+                                  place_lattice)
 from contact.mesh.refine import refine as refine_serial
 
 #: the automatic k keeps at least this many coarse cells per rank
@@ -157,7 +158,12 @@ class MeshHierarchy:
                 if grading == "auto" or "auto" in grading.values():
                     raise MeshError("mesh.grading auto is chosen by the command line's run "
                                     "(contact/adapt.py), not by the mesh")
-                planes[:] = planes or lattice_planes(lv.reference, lv.n_dofs // 3, comm)
+                if not planes:       # its lattice's planes, or off any lattice its box's
+                    try:
+                        planes[:] = lattice_planes(lv.reference, lv.n_dofs // 3, comm)
+                    except MeshError:
+                        pass
+                    planes[:] = planes or box_planes(lv, comm)
                 place_lattice(lv, planes, grading)
         if k == 0:
             self.levels.append(Level(nd0, self._typed(dm)))

@@ -266,17 +266,47 @@ def test_mesh_file_lattice_graded_as_the_box(tmp_path):
     assert rel_err(gather(f)[1], gather(b)[1]) < 1e-9
 
 
-def test_gmsh_mesh_not_a_lattice_is_refused():
+def test_unstructured_mesh_graded_by_a_per_axis_map():
+    """A hexahedral mesh of the beam on no lattice (meshes/beam_unstructured.geo, nd 2,
+    refined once) graded along x (bump 0.1) and z (progression 3): every level's vertex
+    at lower + phi(t) (upper - lower), t its place in the ungraded mesh's box, phi from
+    the definitions here (gmsh's size function for the bump, (r^t - 1) / (r - 1)); the
+    graded mesh solves (a per-axis map of a box: grading.box_planes)."""
+    def hierarchy(**axes):
+        sc = gmsh_beam(2, **({"grading": axes} if axes else {}))
+        sc["mesh"]["file"] = f"{ROOT}/meshes/beam_unstructured.geo"
+        sc = scenes.validate(sc)
+        with options.inserted({"mesh_refine": "1"}):
+            return sc, MeshHierarchy(sc, PETSc.COMM_WORLD, 1)
+    sc, g = hierarchy(x={"bump": 0.1}, z={"progression": 3.0})
+    _, u = hierarchy()
+    assert len(g.levels) == 2
+    for lg, lu in zip(g.levels, u.levels):
+        X, x = lg.coords, lu.coords
+        assert np.array_equal(lg.reference, x)              # the file's places kept
+        want = x.copy()
+        want[:, 0] = 3.0 * bump_test(x[:, 0] / 3.0, 0.1)
+        want[:, 2] = (3.0 ** x[:, 2] - 1.0) / 2.0
+        assert np.abs(X - want).max() < 1e-3 / 8        # (bump_test: the trapezoid's)
+        assert np.abs(X[:, 1] - x[:, 1]).max() == 0.0
+    with options.inserted({"mesh_refine": "1"}):
+        assert solve(sc).converged
+
+
+def test_gmsh_mesh_not_a_box_is_refused():
     """A gmsh mesh with a curved face (meshes/ball.geo: its vertices on no lattice of
-    planes) cannot take a grading: one MeshError naming the counts."""
+    planes, and no box) cannot take a grading: one MeshError naming the side its faces
+    do not cover."""
     sc = {"name": "ball", "mesh": {"type": "gmsh", "file": f"{ROOT}/meshes/ball.geo",
                                    "nd": 1, "grading": {"z": {"progression": 2.0}}},
           "material": {"young": 1.0, "poisson": 0.3},
           "boundary": {"contact": {"physical": "contact", "type": "contact"},
                        "top": {"physical": "top", "type": "dirichlet",
                                "displacement": [0.0, 0.0, -0.01]}}}
-    with pytest.raises(MeshError, match=r"needs a tensor-product hexahedral mesh of a box"
-                                        r" .* 245 vertices on \d+ x \d+ x \d+ planes"):
+    with pytest.raises(MeshError, match=r"needs a hexahedral mesh of a box \(a tensor-"
+                                        r"product one, or any: a per-axis map\); this one's "
+                                        r"faces on its bounding box's plane [xyz] = [-\d.e]+ "
+                                        r"cover [\d.e-]+ of that side's [\d.e-]+$"):
         MeshHierarchy(scenes.validate(sc), PETSc.COMM_WORLD)
 
 
