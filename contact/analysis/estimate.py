@@ -120,7 +120,8 @@ def slab_errors(problem, axis, cells=None, coords=None):
     planes = np.unique(np.concatenate(comm.allgather(mine)))
     span = planes[-1] - planes[0]
     edges = planes[np.concatenate([[True], np.diff(planes) > 1e-9 * span])]
-    bins = file_bins(problem) if cells is None and coords is None else None
+    bins = file_bins(problem) if cells is None and coords is None and \
+        problem.scene["mesh"].get("type", "box") in ("gmsh", "file") else None
     if bins is not None:
         edges = np.linspace(planes[0], planes[-1], bins[axis] + 1)
     E = np.zeros(edges.size - 1)
