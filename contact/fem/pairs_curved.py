@@ -27,9 +27,9 @@ import numpy as np
 
 from contact.fem.pairs_crosspoints import PairError
 
-#: a node's normal, projected off its clamped components, shorter than this: the clamps
-#: leave it no normal
-ONE_SIDE = 0.5
+#: a node's unit normal, projected off its clamped components, shorter than this: the
+#: clamps leave it no normal
+MIN_NORMAL = 0.5
 
 
 def node_bases(normals, clamped):
@@ -40,7 +40,7 @@ def node_bases(normals, clamped):
     n = normals * ~clamped
     size = np.linalg.norm(n, axis=1)
     full = clamped.all(axis=1)
-    ok = full | (size >= ONE_SIDE * np.linalg.norm(normals, axis=1))
+    ok = full | (size >= MIN_NORMAL * np.linalg.norm(normals, axis=1))
     n = np.where(ok[:, None] & ~full[:, None], n / np.maximum(size, 1e-300)[:, None],
                  normals)
     Q = np.zeros((n.shape[0], 3, 3))
