@@ -157,7 +157,7 @@ def test_frictionless_ramps_end_where_the_static_solve_does(comm):
     ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.5, 0.5]}, "0 <= t0 < t1 <= 1"),
     ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.0, 1.5]}, "0 <= t0 < t1 <= 1"),
     ({"type": "traction", "traction": [0, 0, -1], "ramp": [0.0]}, "list of 2"),
-    ({"type": "contact", "ramp": [0.0, 1.0]}, "belongs to traction and dirichlet"),
+    ({"type": "contact", "ramp": [0.0, 1.0]}, "belongs to traction, pressure and dirichlet"),
 ])
 def test_bad_ramps(part, msg):
     parts = {"clamp": {"plane": ["z", 0.0], "type": "dirichlet"},
