@@ -536,6 +536,10 @@ def cases_bodies():
     rows += [Case(f"bodies-shrink-fit-q2-F{f}-nd{n}", f"the shrink fit with q2, F = {f}, "
                   f"Nd = {n}", fit + nd(n) + ["-friction", f, "-element", "q2"])
              for f in ("0", "0.3") for n in (1, 2)]
+    pipe = ["-scene", os.path.join(SCENES, "pipe_in_sleeve.yaml")]   # pressure, touching
+    rows += [Case(f"bodies-pipe-in-sleeve-F{f}-nd{n}", f"a pipe under pressure in a sleeve "
+                  f"(q2, curved pair), F = {f}, Nd = {n}", pipe + nd(n) + ["-friction", f])
+             for f in ("0", "0.3") for n in (1, 2)]
     return rows
 
 
@@ -793,7 +797,9 @@ GROUPS = {
                "steel parts (gasket.yaml: E 2.1e4 times the steel's) as q1, bbar, q2 and "
                "q2p1, nu = 0.49 and 0.4999, Nd = 1, 2, and F = 0, 1; a shrink fit of two "
                "tubes (shrink_fit.yaml: a curved slave face), F = 0 to 1, Nd = 1, 2, 4, "
-               "refined twice from Nd = 1, and q2 at F = 0, 0.3, Nd = 1, 2.", cases_bodies),
+               "refined twice from Nd = 1, and q2 at F = 0, 0.3, Nd = 1, 2; a pipe under "
+               "internal pressure in a sleeve it touches (pipe_in_sleeve.yaml, q2), F = 0, "
+               "0.3, Nd = 1, 2.", cases_bodies),
     "fvar": ("Friction varying over the contact face",
              "F as an expression of x, y, z, zero on part of the face, and three malformed "
              "values that must give a one-line error.", cases_fvar),
