@@ -19,14 +19,17 @@ def axis_of(normal, tol=1e-12):
 
 def basis(normal):
     """Q (3, 3) with rows t1, t2, n: t1 the coordinate axis most nearly orthogonal to n,
-    projected on the plane (exactly e_c when n_c = 0), t2 = n x t1."""
-    n = unit(normal)
-    c = int(np.argmin(np.abs(n)))
-    t1 = np.eye(3)[c] - n[c] * n
-    t1 /= np.linalg.norm(t1)
-    if abs(n[c]) == 0.0:
-        t1 = np.eye(3)[c]
-    return np.vstack([t1, np.cross(n, t1), n])
+    projected on the plane (exactly e_c when n_c = 0), t2 = n x t1. Normals (m, 3): Q (m,
+    3, 3), one a row."""
+    n = np.asarray(normal, dtype=float)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    c = np.argmin(np.abs(n), axis=-1)
+    e = np.eye(3)[c]
+    nc = np.take_along_axis(n, c[..., None], axis=-1)
+    t1 = e - nc * n
+    t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
+    t1 = np.where(nc == 0.0, e, t1)
+    return np.stack([t1, np.cross(n, t1), n], axis=-2)
 
 
 def rotation(axis, degrees):

@@ -121,11 +121,8 @@ def nodal_normals(x, faces):
     where the faces face both ways (their unit normals' sum under half their count: an
     inner plane's faces, taken from the cells on both sides). 9-node faces (f, 9): the
     9-node map's normal at each node's reference point."""
-    if faces.shape[1] == 9:
-        X, dN = x[faces], grad9(Q9)
-    else:
-        X, dN = x[faces], shape(Q9[:4])[1]
-    dx = np.einsum("qad,fai->fqdi", dN, X)
+    dN = grad9(Q9) if faces.shape[1] == 9 else shape(Q9[:4])[1]
+    dx = np.einsum("qad,fai->fqdi", dN, x[faces])
     c = np.cross(dx[:, :, 0], dx[:, :, 1])
     c /= np.linalg.norm(c, axis=2, keepdims=True)
     n = np.zeros_like(x, dtype=float)

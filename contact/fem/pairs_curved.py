@@ -26,6 +26,7 @@ centre node is the 9-node map's there.
 import numpy as np
 
 from contact.fem.pairs_crosspoints import PairError
+from contact.geometry import basis
 
 #: a node's unit normal, projected off its clamped components, shorter than this: the
 #: clamps leave it no normal
@@ -47,11 +48,8 @@ def node_bases(normals, clamped):
     count = clamped.sum(axis=1)
     eye = np.eye(3)
     # no clamp: t1 the axis most nearly orthogonal to n, projected (geometry.basis)
-    i = np.flatnonzero(count == 0)
-    c = np.argmin(np.abs(n[i]), axis=1)
-    t1 = eye[c] - n[i, c][:, None] * n[i]
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    Q[i, 0], Q[i, 1], Q[i, 2] = t1, np.cross(n[i], t1), n[i]
+    i = np.flatnonzero((count == 0) & (size > 0.0))     # (0: refused, surface_bases)
+    Q[i] = basis(n[i])
     # one clamped component c: t1 = e_c, t2 = n x e_c (n is orthogonal to e_c)
     i = np.flatnonzero(count == 1)
     e = eye[np.argmax(clamped[i], axis=1)]
