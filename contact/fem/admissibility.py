@@ -20,6 +20,11 @@ from petsc4py import PETSc
 from contact import fem, options
 from contact.scene import SceneError, ramp_factor
 
+#: a body's rigid motion counts as free where its contact pairs' normals hold less than
+#: this fraction of its motion at the body's held dofs and contact nodes, with a curved
+#: pair (the facets' normals at the face's edge, rigid.weakly_held)
+WEAK = 1e-2
+
 
 def check(disc):
     """All checks; returns (friction_held, contact_held): friction_held is None, or (Q,
@@ -82,14 +87,22 @@ def check_bodies(disc):
             raise SceneError(f"body {name!r} is held by nothing in {', '.join(own[0])}: "
                              f"add a dirichlet or symmetry part, or a contact pair")
         needs_pair = True
-        free, Q, _ = fem.free_rigid_modes(disc.coordinates, mine, cs.coordinates[near],
-                                          normals if normals.ndim == 1 else normals[near])
+        args = (disc.coordinates, mine, cs.coordinates[near],
+                normals if normals.ndim == 1 else normals[near])
+        free, Q, _ = fem.free_rigid_modes(*args)
+        facets = False
+        if cs.bases is not None:                  # a curved pair: what its facets hold
+            weak = fem.free_rigid_modes(*args, weak=WEAK)
+            facets = weak[1].shape[1] > Q.shape[1]
+            free, Q = weak[:2]
         if free and not (tangential(Q) and cs.has_friction):
             raise SceneError(f"body {name!r}: its dirichlet and symmetry parts and the contact "
                              f"pair leave rigid-body motion free ({', '.join(free)}; the "
                              f"pair holds the normal direction"
                              + (", friction could hold the others, but F = 0)"
                                 if tangential(Q) else ")")
+                             + (" (a curved face's facets hold it at the face's edges only, "
+                                f"under {WEAK:.0%} of its motion there)" if facets else "")
                              + ": no unique solution")
     return needs_pair
 

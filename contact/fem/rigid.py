@@ -29,30 +29,57 @@ def rigid_modes(xyz, x0, h):
     return M
 
 
-def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.0)):
+def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.0),
+                     weak=0.0):
     """Rigid-body motions not fixed by the dofs `rows` (global, owned, x, y, z) and, if
     given, by the normal displacement u . n (n = `normal`, or (m, 3): each point's) at
     `normal_points` (owned contact nodes, (m, 3)).
 
     Each constrained dof is a row of the 6 rigid modes there; the modes are fixed iff the
-    6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. Returns (names,
-    Q, frame): the free modes named by their largest components, Q (6, k) a basis of them,
-    and (x0, h) of `rigid_modes`.
+    6 x 6 Gram matrix of these rows, summed over ranks, is nonsingular. weak > 0 (with
+    normal_points): a motion counts as free too where the fraction of it that these rows
+    hold, of its whole motion at the same dofs and points (all three components at a
+    contact node), is below weak (weakly_held). Returns (names, Q, frame): the free modes
+    named by their largest components, Q (6, k) an orthonormal basis of them, and (x0, h)
+    of `rigid_modes`.
     """
     comm = coordinates.getComm().tompi4py()
     xyz = coordinates.getArray(readonly=True).reshape(-1, 3)
     x0, h = _rigid_frame(comm, xyz)
     loc = np.asarray(rows) - coordinates.getOwnershipRange()[0]
     R = rigid_modes(xyz[loc // 3], x0, h)[np.arange(loc.size), loc % 3, :]
+    whole = R.T @ R
     if normal_points is not None:                  # (normal: one, or one per point)
         n = np.broadcast_to(np.asarray(normal, dtype=float), np.shape(normal_points))
-        R = np.vstack([R, np.einsum("pcm,pc->pm", rigid_modes(normal_points, x0, h), n)])
+        M = rigid_modes(normal_points, x0, h)
+        R = np.vstack([R, np.einsum("pcm,pc->pm", M, n)])
+        whole = whole + np.einsum("pcm,pcn->mn", M, M)
     lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
     Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
+    if weak > 0.0 and normal_points is not None:
+        Q = weakly_held(comm.allreduce(R.T @ R), comm.allreduce(whole), weak, Q)
     names = set()
     for q in np.abs(Q.T):
         names |= {RIGID_MODES[j] for j in np.flatnonzero(q > 0.5 * q.max())}
     return sorted(names, key=RIGID_MODES.index), Q, (x0, h)
+
+
+def weakly_held(A, B, weak, Q):
+    """An orthonormal basis (6, k) of span Q and of the motions q whose held part q^T A q is
+    under weak times their whole motion q^T B q (the generalized eigenvectors of (A, B)
+    below weak; B, the motion at every held dof and point, nonsingular: else Q). A curved
+    face's facets hold the rotation that slides it along itself only at the face's edge,
+    where a node's normal is one facet's (a fraction of its motion of the order of the
+    facets' angle times the edge nodes' share), a flat face holds what it holds in full."""
+    s = np.linalg.eigvalsh(B)
+    if s[0] <= 1e-10 * s[-1]:
+        return Q                                   # too few points to measure against
+    L = np.linalg.cholesky(B)
+    Li = np.linalg.inv(L)
+    mu, W = np.linalg.eigh(Li @ A @ Li.T)
+    weakly = Li.T @ W[:, mu < weak]                # (the generalized eigenvectors)
+    U, sv, _ = np.linalg.svd(np.hstack([Q, weakly]), full_matrices=False)
+    return U[:, sv > 1e-8 * max(sv.max(initial=0.0), 1e-300)]
 
 
 def tangential_modes(Q, normal, tol=1e-8):
