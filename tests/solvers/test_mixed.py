@@ -239,7 +239,10 @@ def test_q2p1_u_block_one_cycle_kept_between_steps():
     assert fine.getPC().getType() == PETSc.PC.Type.SOR and fine.getTolerances()[3] == 1
     assert PETSc.Options().getString("newton_pc_fieldsplit_schur_fact_type", "") == "" and \
         pr.inner.split.newton_defaults()["newton_pc_fieldsplit_schur_fact_type"] == "lower"
-    assert pr.inner.iterations <= 9 and pr.inner.ksp_iterations <= 160, \
+    # (the SOR sweeps are each rank's own, so on this small block the iterations grow with
+    # the ranks: 92, 96, 114, 142, 153, 184, 219, 236 on 1-8 ranks, 7 steps each)
+    bound = max(160, 35 * PETSc.COMM_WORLD.getSize())
+    assert pr.inner.iterations <= 9 and pr.inner.ksp_iterations <= bound, \
         (pr.inner.iterations, pr.inner.ksp_iterations)
 
 
