@@ -7,6 +7,10 @@
                            foundation may be left to friction (F > 0): the body is then
                            "friction held", and the statics of a rigid block decide;
   lift-off                 a body held only by the foundation must not be pulled away;
+                           with several bodies, one that only its contact pairs hold must
+                           have no rigid motion that moves it off them (each node opening,
+                           or sliding as friction allows) without the load's negative
+                           work: pushed away by a fit, pulled off, or pressed by nothing;
   statics                  a friction-held body's tangential load T must not exceed F_max N
                            at any load step, and the load's resultant must pass through
                            its flat contact face (it tips over otherwise) (-statics_check
@@ -18,7 +22,14 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contact import fem, options
+from contact.geometry import basis
+from contact.fem.rigid import RIGID_MODES as RIGID_NAMES
 from contact.scene import SceneError, ramp_factor
+
+DEFAULT_RAMP = (0.0, 1.0)                  # (discretisation.py's)
+#: a body pushed off its pairs: the rigid motion found opens its contact nodes by this
+#: fraction of a unit motion on average (check_pushed_off; rounding opens them by ~1e-16)
+OPENING = 1e-2
 
 #: a body's rigid motion counts as free where its contact pairs' normals hold less than
 #: this fraction of its motion at the body's held dofs and contact nodes, with a curved
@@ -72,7 +83,7 @@ def check_bodies(disc):
         fem.tangential_modes(Q, n) for n in ([disc.normal] if not ks else np.eye(3)[ks]))
     gid = rstart // 3 + (cs.nodes if cs is not None else np.zeros(0, dtype=np.intp))
     for i, (name, mask) in enumerate(zip(disc.bodies, disc.body_masks())):
-        m = mask.getArray(readonly=True)
+        m = mask.getArray(readonly=True).copy()
         mine = rows[m[rows - rstart] > 0.5] if rows.size else rows
         # its contact nodes: its own, and the slave nodes of the pairs it is the master of
         near = m[3 * (gid - rstart // 3)] > 0.5
@@ -104,7 +115,89 @@ def check_bodies(disc):
                              + (" (a curved face's facets hold it at the face's edges only, "
                                 f"under {WEAK:.0%} of its motion there)" if facets else "")
                              + ": no unique solution")
+        signed = np.broadcast_to(normals, (len(gid), 3)) * np.broadcast_to(
+            np.asarray(cs.sign, dtype=float), (len(gid),))[:, None]
+        role = np.where(m[3 * (gid - rstart // 3)] > 0.5, 1.0, -1.0)     # slave, master
+        check_pushed_off(disc, name, np.flatnonzero(m[0::3] > 0.5), own,
+                         cs.coordinates[near], (role[:, None] * signed)[near],
+                         cs.local_array(cs.F)[near])
     return needs_pair
+
+
+def check_pushed_off(disc, name, nodes, own, points, opening, friction):
+    """SceneError when a body that only its contact pairs hold (own: free_rigid_modes of
+    its dirichlet and symmetry parts alone, their motions Q0) can move off them: a rigid
+    motion q in span Q0 against which the contact forces do no work at any node (opening
+    o_j = n_j . u_j(q) >= F_j |s_j|, s_j its sliding: the polar cone of Coulomb's, the
+    square inside the disc; n_j the normal into the slave body, turned where the body is
+    the master, the other bodies held still) and which opens some node, while the load
+    does no negative work on it at some load step. Then the pairs can only push the body
+    away (an overlap, a fit) or nothing presses it on them: no equilibrium, or none unique
+    (strict compatibility: Fichera; by Farkas the dual of the contact forces' balance of
+    the load). A linear programme over q (|q|_1 <= 1) maximising the opening; refused
+    where it opens the nodes by OPENING of a unit motion on average."""
+    from scipy.optimize import linprog
+    names, Q0, frame = own
+    if not names:
+        return
+    mpi = disc.comm.tompi4py()
+    u = fem.rigid_modes(points, *frame) @ Q0                       # (p, 3, k)
+    keep = np.linalg.norm(opening, axis=1) > 0.5                 # (a node of no normal: 0)
+    u, opening, friction = u[keep], opening[keep], friction[keep]
+    T = basis(opening)                                            # (p, 3, 3): t1, t2, n
+    o = np.einsum("pc,pck->pk", opening, u)
+    s1, s2 = (np.einsum("pc,pck->pk", T[:, i], u) for i in (0, 1))
+    f = (friction / np.sqrt(2.0))[friction > 0.0, None]           # the inscribed square
+    slid = [sign * f * si[friction > 0.0] - o[friction > 0.0] for si in (s1, s2)
+            for sign in (1.0, -1.0)]                               # f |s_a| <= o
+    A = np.vstack(mpi.allgather(np.vstack([-o] + slid)))           # A q <= 0
+    O = np.vstack(mpi.allgather(o))
+    xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3)[nodes]
+    M = fem.rigid_modes(xyz, *frame) @ Q0
+    works = [mpi.allreduce(np.einsum("pc,pck->k", body_load(disc, ramp, mine, nodes), M))
+             for ramp, mine, _ in disc.load_groups]
+    steps = int(disc.scene.get("loading", {}).get("steps", 1))
+    found = None
+    if mpi.rank == 0 and O.shape[0]:
+        for k in range(1, steps + 1):
+            w = sum(ramp_factor(r, k / steps) * wg
+                    for (r, _, _), wg in zip(disc.load_groups, works))
+            # q = q+ - q-, |q|_1 <= 1: the vertices name few motions
+            c = O.sum(axis=0)
+            lp = linprog(np.r_[-c, c], A_ub=np.vstack([np.hstack([A, -A]), np.r_[-w, w],
+                                                       np.ones(2 * len(c))]),
+                         b_ub=np.r_[np.zeros(A.shape[0] + 1), 1.0], bounds=(0.0, None),
+                         method="highs")
+            if lp.status == 0 and -lp.fun > OPENING * O.shape[0]:
+                q = np.abs(Q0 @ (lp.x[:len(c)] - lp.x[len(c):]))
+                found = (k, [RIGID_NAMES[j] for j in np.flatnonzero(q > 0.5 * q.max())])
+                break
+    found = mpi.bcast(found)
+    if found is not None:
+        k, which = found
+        at = f" at load step {k} of {steps}" if steps > 1 else ""
+        raise SceneError(f"body {name!r}: only its contact pairs hold it, and a rigid motion "
+                         f"({', '.join(which)}) moves it off them (every node opens, or "
+                         f"slides as friction allows) without the load{at} doing negative "
+                         f"work: the pairs cannot hold it there (no equilibrium, or none "
+                         f"unique); support it, or load it onto the pairs")
+
+
+def body_load(disc, ramp, mine, nodes):
+    """The external load (x, y, z) at a body's owned nodes of the load group of `ramp`
+    whose parts are `mine` (tractions, pressures; the body force in the default ramp's)."""
+    sc, bnd = disc.scene, disc.scene["boundary"]
+    default = tuple(ramp) == DEFAULT_RAMP
+    f = fem.load_vector(disc.dm, disc.elements, disc.coords,
+                        [(disc.parts[n], bnd[n]["traction"]) for n in mine
+                         if bnd[n]["type"] == "traction"],
+                        sc.get("body_force", [0.0, 0.0, 0.0]) if default else [0.0] * 3,
+                        disc.roles, disc.linear,
+                        [(disc.parts[n], bnd[n]["pressure"]) for n in mine
+                         if bnd[n]["type"] == "pressure"])
+    out = f.getArray(readonly=True).reshape(-1, 3)[nodes].copy()
+    f.destroy()
+    return out
 
 
 def check_prescribed_on_contact(disc):

@@ -7,6 +7,7 @@ The patch test: a punch pressed by p on a base; with non-matching meshes at the 
 mortar transmits a uniform pressure exactly: u is the linear uniaxial field of each body
 and the multiplier is p at every slave node, to rounding."""
 import copy
+import re
 import os
 
 import numpy as np
@@ -189,6 +190,41 @@ def test_bad_pairings(comm, change, words):
     change(sc)
     with pytest.raises(SceneError, match=words.replace("(", r"\(")):
         solve(scenes.validate(copy.deepcopy(sc)), comm)
+
+
+PUSHED_OFF = "body 'punch': only its contact pairs hold it, and a rigid motion ("
+
+
+@pytest.mark.parametrize("friction, traction, slave, refused", [
+    (0.0, [0.0, 0.0, 0.01], "punch", True),       # pulled off
+    (0.0, [0.0, 0.0, 0.01], "base", True),        # the same, the punch the master side
+    (0.0, [0.0, 0.0, 0.0], "punch", True),        # nothing presses it on: none unique
+    (0.3, [0.001, 0.0, -0.01], "punch", False),   # T = 0.1 N: friction holds it
+    (0.3, [0.005, 0.0, -0.01], "punch", True),    # T = 0.5 N > F N: it slides off
+    (0.3, [0.005, 0.0, -0.01], "base", True),
+])
+def test_body_pushed_off_its_pairs(comm, friction, traction, slave, refused):
+    """A body that only its contact pairs hold in some rigid motion (the punch: along z,
+    and with friction, the symmetry planes the base's alone, in all six) and that a rigid
+    motion moves off them (each node opening, or sliding within Coulomb's polar cone)
+    without the load doing negative work: refused in one line
+    (admissibility.check_pushed_off), whichever side is the slave; pressed with a
+    tangential load friction holds (T = 0.1 N, F = 0.3) it runs."""
+    sc = two_blocks(friction=friction)
+    b = sc["boundary"]
+    for k in ("sym_x", "sym_y"):
+        if friction > 0.0:
+            b[k]["body"] = "base"
+    b["press"]["traction"] = traction
+    if slave == "base":
+        b["interface"] = {"type": "contact", "body": "base", "plane": ["z", 0.5],
+                          "master": {"body": "punch"}}
+    if refused:
+        with pytest.raises(SceneError, match=re.escape(PUSHED_OFF)):
+            solve(scenes.validate(sc), comm)
+    else:
+        pr = solve(scenes.validate(sc), comm)
+        assert pr.converged and pr.normal_force() > 0.0
 
 
 def test_shipped_punch_on_plate(comm):

@@ -259,3 +259,18 @@ def test_curved_pair_refusals(comm, scene, change, words):
     change(sc)
     with pytest.raises(SceneError, match="contact pair " + re.escape(words)):
         solve(scenes.validate(sc), comm)
+
+
+def test_shrink_fit_shaft_pushed_out(comm):
+    """The shrink fit's shaft without its symmetry planes, with friction (F = 0.3 holds its
+    rotation): the fit can only push the quarter shaft toward the axis, off the hub, and
+    nothing holds it there. Refused in one line (admissibility.check_pushed_off); before,
+    the Newton iteration converged to a spurious point and the solution check failed
+    (coulomb residual 0.38)."""
+    sc = scenes.load(SHRINK)
+    for k in ("sym_x", "sym_y"):
+        sc["boundary"][k]["body"] = "hub"
+    sc["contact"]["friction"] = 0.3
+    with pytest.raises(SceneError, match=re.escape(
+            "body 'shaft': only its contact pairs hold it, and a rigid motion (")):
+        solve(scenes.validate(sc), comm)
