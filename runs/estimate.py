@@ -102,7 +102,7 @@ def main(argv=None):
                     e = est[key]
                     levels = ", ".join(e["levels"])
                     true = abs(e["value"] - q)
-                    if e["error"] is None:
+                    if e["error"] is None or e["order"] is None:
                         lines.append(f"| {el} | {nd} | {np_} | {levels} | {key} | "
                                      f"{e['value']:.6e} | {e['note']} | {true:.2e} | – | – | "
                                      "no number |")

@@ -26,6 +26,9 @@ from contact.analysis import convergence
 #: summary.json key -> words
 QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",
               "tangential_force": "contact force T", "energy": "energy J"}
+#: levels whose values agree to this (relative) give the same value: no estimate to make
+SAME = 1e-10
+
 #: observed orders accepted as asymptotic, per element (h = 1/Nd; q2's Nd counts its
 #: elements): outside, the estimate is not given. An order observed far above the element's
 #: a-priori order is pre-asymptotic, and C h^p with it understates the error. q1, bbar: 1.5
@@ -192,8 +195,16 @@ def from_levels(levels, element):
         if any(v is None for v in vals):
             continue
         fine = vals[-1]
-        r = convergence.richardson([1.0 / n for n in nds[-3:]], vals[-3:])
         entry = {"value": fine, "levels": dict(zip(map(str, nds), vals))}
+        spread = max(vals[-3:]) - min(vals[-3:])
+        if spread <= SAME * max(abs(v) for v in vals[-3:]):
+            entry.update(error=spread, order=None, extrapolated=fine, extrapolated_error=None,
+                         note=f"the same on every level to rounding (Nd = "
+                              f"{', '.join(map(str, nds[-3:]))}): the data set it (a "
+                              f"prescribed displacement, say), no discretisation error")
+            out[key] = entry
+            continue
+        r = convergence.richardson([1.0 / n for n in nds[-3:]], vals[-3:])
         if r is None or not lo <= r[1] <= hi:
             d1, d2 = vals[-3] - vals[-2], vals[-2] - vals[-1]
             why = ("the differences between levels change sign" if d1 * d2 <= 0 else
@@ -253,6 +264,9 @@ def lines(est, nds):
             continue
         if e["error"] is None:
             out.append(f"  {words:16s} {e['value']:.6e}  {e['note']}")
+            continue
+        if e["order"] is None:                    # the same on every level (from_levels)
+            out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e}  {e['note']}")
             continue
         rel = e["error"] / abs(e["extrapolated"]) if e["extrapolated"] else math.inf
         out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e} ({100 * rel:.2g} %), "

@@ -62,6 +62,22 @@ def test_words_outside_the_asymptotic_range():
     assert estimate.from_levels(_levels([8, 16], lambda h: h), "q1") is None
 
 
+def test_the_same_on_every_level():
+    """A value the data set (the punch's max |u|: its prescribed displacement, on every
+    level) is the same to rounding: it gets that spread as its error and says why, not
+    "the differences change sign" (rounding's), and the next quantity is estimated."""
+    u = 4.123105625617661e-04
+    est = estimate.from_levels(_levels([4, 8, 16], lambda h: u * (1.0 + {
+        0.25: 1e-16, 0.125: -1e-16, 0.0625: 0.0}[h])), "q1")
+    e = est["max_displacement"]
+    assert e["error"] <= 1e-19 and e["order"] is None and e["extrapolated"] == e["value"]
+    assert "the same on every level to rounding (Nd = 4, 8, 16)" in e["note"]
+    assert estimate.lines(est, [4, 8, 16])[1].startswith(
+        f"  max |u|          {u:.6e} +- ")
+    moved = estimate.from_levels(_levels([4, 8, 16], lambda h: u * (1.0 + 1e-8 * h)), "q1")
+    assert moved["max_displacement"]["order"] == pytest.approx(1.0, rel=1e-4)
+
+
 def test_the_beam_effectivity_in_band():
     """q1 at Nd = 16 (levels 4, 8, 16): measured effectivities 1.17, 1.00, 1.01 (1 and 2
     ranks); fails if the estimate is off by more than the band."""
