@@ -23,10 +23,8 @@ from petsc4py import PETSc
 
 from contact import fem, options
 from contact.geometry import basis
-from contact.fem.rigid import RIGID_MODES as RIGID_NAMES
 from contact.scene import SceneError, ramp_factor
 
-DEFAULT_RAMP = (0.0, 1.0)                  # (discretisation.py's)
 #: a body pushed off its pairs: the rigid motion found opens its contact nodes by this
 #: fraction of a unit motion on average (check_pushed_off; rounding opens them by ~1e-16)
 OPENING = 1e-2
@@ -154,8 +152,12 @@ def check_pushed_off(disc, name, nodes, own, points, opening, friction):
     O = np.vstack(mpi.allgather(o))
     xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3)[nodes]
     M = fem.rigid_modes(xyz, *frame) @ Q0
-    works = [mpi.allreduce(np.einsum("pc,pck->k", body_load(disc, ramp, mine, nodes), M))
-             for ramp, mine, _ in disc.load_groups]
+    works = []
+    for ramp, mine, _ in disc.load_groups:      # the load's work on each motion, per group
+        f = disc.xyz_load(ramp, mine)
+        works.append(mpi.allreduce(np.einsum(
+            "pc,pck->k", f.getArray(readonly=True).reshape(-1, 3)[nodes], M)))
+        f.destroy()
     steps = int(disc.scene.get("loading", {}).get("steps", 1))
     found = None
     if mpi.rank == 0 and O.shape[0]:
@@ -170,7 +172,7 @@ def check_pushed_off(disc, name, nodes, own, points, opening, friction):
                          method="highs")
             if lp.status == 0 and -lp.fun > OPENING * O.shape[0]:
                 q = np.abs(Q0 @ (lp.x[:len(c)] - lp.x[len(c):]))
-                found = (k, [RIGID_NAMES[j] for j in np.flatnonzero(q > 0.5 * q.max())])
+                found = (k, [fem.RIGID_MODES[j] for j in np.flatnonzero(q > 0.5 * q.max())])
                 break
     found = mpi.bcast(found)
     if found is not None:
@@ -181,23 +183,6 @@ def check_pushed_off(disc, name, nodes, own, points, opening, friction):
                          f"slides as friction allows) without the load{at} doing negative "
                          f"work: the pairs cannot hold it there (no equilibrium, or none "
                          f"unique); support it, or load it onto the pairs")
-
-
-def body_load(disc, ramp, mine, nodes):
-    """The external load (x, y, z) at a body's owned nodes of the load group of `ramp`
-    whose parts are `mine` (tractions, pressures; the body force in the default ramp's)."""
-    sc, bnd = disc.scene, disc.scene["boundary"]
-    default = tuple(ramp) == DEFAULT_RAMP
-    f = fem.load_vector(disc.dm, disc.elements, disc.coords,
-                        [(disc.parts[n], bnd[n]["traction"]) for n in mine
-                         if bnd[n]["type"] == "traction"],
-                        sc.get("body_force", [0.0, 0.0, 0.0]) if default else [0.0] * 3,
-                        disc.roles, disc.linear,
-                        [(disc.parts[n], bnd[n]["pressure"]) for n in mine
-                         if bnd[n]["type"] == "pressure"])
-    out = f.getArray(readonly=True).reshape(-1, 3)[nodes].copy()
-    f.destroy()
-    return out
 
 
 def check_prescribed_on_contact(disc):

@@ -392,13 +392,7 @@ class Discretisation:
         self.load_groups = []
         for ramp in ramps:
             mine = {n for n, p in bnd.items() if tuple(p.get("ramp", DEFAULT_RAMP)) == ramp}
-            bg = fem.load_vector(dm, self.elements, coords,
-                                 [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
-                                  if bnd[n]["type"] == "traction"],
-                                 body_force if ramp == DEFAULT_RAMP else [0.0, 0.0, 0.0],
-                                 self.roles, self.linear,
-                                 [(self.parts[n], bnd[n]["pressure"]) for n in sorted(mine)
-                                  if bnd[n]["type"] == "pressure"])
+            bg = self.xyz_load(ramp, mine)
             if self.pair is not None:            # the loops' basis: Z^T b (pairs.py)
                 self.pair.transform_load(bg)
             self.to_frame(bg)
@@ -438,6 +432,18 @@ class Discretisation:
         if len(self.load_groups) == 1:           # one group: b itself
             self.load_groups[0][2].destroy()
             self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
+
+    def xyz_load(self, ramp, mine):
+        """The external load (a new Vec, x, y, z) of the load group of `ramp` whose parts are
+        `mine`: their tractions and pressures, and the body force in the default ramp's."""
+        sc, bnd = self.scene, self.scene["boundary"]
+        return fem.load_vector(self.dm, self.elements, self.coords,
+                               [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
+                                if bnd[n]["type"] == "traction"],
+                               sc.get("body_force", [0.0] * 3) if tuple(ramp) == DEFAULT_RAMP
+                               else [0.0] * 3, self.roles, self.linear,
+                               [(self.parts[n], bnd[n]["pressure"]) for n in sorted(mine)
+                                if bnd[n]["type"] == "pressure"])
 
     def _pair_gap(self, rel):
         """A prescribed displacement's relative part, n . (Z^-1 u_D) at the slave nodes

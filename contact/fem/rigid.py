@@ -54,10 +54,11 @@ def free_rigid_modes(coordinates, rows, normal_points=None, normal=(0.0, 0.0, 1.
         M = rigid_modes(normal_points, x0, h)
         R = np.vstack([R, np.einsum("pcm,pc->pm", M, n)])
         whole = whole + np.einsum("pcm,pcn->mn", M, M)
-    lam, V = np.linalg.eigh(comm.allreduce(R.T @ R))
+    held = comm.allreduce(R.T @ R)
+    lam, V = np.linalg.eigh(held)
     Q = V[:, lam <= 1e-10 * max(lam.max(), 1.0)]
     if weak > 0.0 and normal_points is not None:
-        Q = weakly_held(comm.allreduce(R.T @ R), comm.allreduce(whole), weak, Q)
+        Q = weakly_held(held, comm.allreduce(whole), weak, Q)
     names = set()
     for q in np.abs(Q.T):
         names |= {RIGID_MODES[j] for j in np.flatnonzero(q > 0.5 * q.max())}
