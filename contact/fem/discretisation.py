@@ -434,16 +434,14 @@ class Discretisation:
             self.load_groups = [(DEFAULT_RAMP, self.load_groups[0][1], self.b)]
 
     def xyz_load(self, ramp, mine):
-        """The external load (a new Vec, x, y, z) of the load group of `ramp` whose parts are
-        `mine`: their tractions and pressures, and the body force in the default ramp's."""
-        sc, bnd = self.scene, self.scene["boundary"]
-        return fem.load_vector(self.dm, self.elements, self.coords,
-                               [(self.parts[n], bnd[n]["traction"]) for n in sorted(mine)
-                                if bnd[n]["type"] == "traction"],
-                               sc.get("body_force", [0.0] * 3) if tuple(ramp) == DEFAULT_RAMP
-                               else [0.0] * 3, self.roles, self.linear,
-                               [(self.parts[n], bnd[n]["pressure"]) for n in sorted(mine)
-                                if bnd[n]["type"] == "pressure"])
+        """The load (x, y, z; a new Vec) of parts `mine` (+ body force: the default ramp)."""
+        bnd, mine = self.scene["boundary"], sorted(mine)
+        part = lambda kind: [(self.parts[n], bnd[n][kind]) for n in mine  # noqa: E731
+                             if bnd[n]["type"] == kind]
+        force = self.scene.get("body_force", [0.0] * 3) if tuple(ramp) == DEFAULT_RAMP \
+            else [0.0] * 3
+        return fem.load_vector(self.dm, self.elements, self.coords, part("traction"), force,
+                               self.roles, self.linear, part("pressure"))
 
     def _pair_gap(self, rel):
         """A prescribed displacement's relative part, n . (Z^-1 u_D) at the slave nodes
