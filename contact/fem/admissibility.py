@@ -127,7 +127,7 @@ def check_pushed_off(disc, name, nodes, own, points, opening, friction):
     its dirichlet and symmetry parts alone, their motions Q0) can move off them: a rigid
     motion q in span Q0 against which the contact forces do no work at any node (opening
     o_j = n_j . u_j(q) >= F_j |s_j|, s_j its sliding: the polar cone of Coulomb's, the
-    square inside the disc; n_j the normal into the slave body, turned where the body is
+    octagon inside the disc; n_j the normal into the slave body, turned where the body is
     the master, the other bodies held still) and which opens some node, while the load
     does no negative work on it at some load step. Then the pairs can only push the body
     away (an overlap, a fit) or nothing presses it on them: no equilibrium, or none unique
@@ -145,9 +145,9 @@ def check_pushed_off(disc, name, nodes, own, points, opening, friction):
     T = basis(opening)                                            # (p, 3, 3): t1, t2, n
     o = np.einsum("pc,pck->pk", opening, u)
     s1, s2 = (np.einsum("pc,pck->pk", T[:, i], u) for i in (0, 1))
-    f = (friction / np.sqrt(2.0))[friction > 0.0, None]           # the inscribed square
-    slid = [sign * f * si[friction > 0.0] - o[friction > 0.0] for si in (s1, s2)
-            for sign in (1.0, -1.0)]                               # f |s_a| <= o
+    on = friction > 0.0                   # F (s . e_k) <= o cos(pi / 8): the octagon
+    f, s1, s2, oo = friction[on, None] / np.cos(np.pi / 8), s1[on], s2[on], o[on]
+    slid = [f * (np.cos(t) * s1 + np.sin(t) * s2) - oo for t in np.arange(8) * np.pi / 4]
     A = np.vstack(mpi.allgather(np.vstack([-o] + slid)))           # A q <= 0
     O = np.vstack(mpi.allgather(o))
     xyz = disc.coordinates.getArray(readonly=True).reshape(-1, 3)[nodes]

@@ -200,7 +200,9 @@ PUSHED_OFF = "body 'punch': only its contact pairs hold it, and a rigid motion (
     (0.0, [0.0, 0.0, 0.01], "base", True),        # the same, the punch the master side
     (0.0, [0.0, 0.0, 0.0], "punch", True),        # nothing presses it on: none unique
     (0.3, [0.001, 0.0, -0.01], "punch", False),   # T = 0.1 N: friction holds it
+    (0.3, [0.0025, 0.0, -0.01], "punch", False),  # T = 0.25 N (a square around refused it)
     (0.3, [0.005, 0.0, -0.01], "punch", True),    # T = 0.5 N > F N: it slides off
+    (0.3, [0.004, 0.0, -0.01], "punch", True),    # T = 0.4 N (the square missed it)
     (0.3, [0.005, 0.0, -0.01], "base", True),
 ])
 def test_body_pushed_off_its_pairs(comm, friction, traction, slave, refused):
@@ -209,7 +211,9 @@ def test_body_pushed_off_its_pairs(comm, friction, traction, slave, refused):
     motion moves off them (each node opening, or sliding within Coulomb's polar cone)
     without the load doing negative work: refused in one line
     (admissibility.check_pushed_off), whichever side is the slave; pressed with a
-    tangential load friction holds (T = 0.1 N, F = 0.3) it runs."""
+    tangential load friction holds (T = 0.1 N, F = 0.3) it runs. Coulomb's cone is
+    replaced by the octagon inside it: refused where T > 1.08 F N (0.4 N here; a square
+    inside would need T > 1.41 F N, the square around it refused T = 0.25 N < F N)."""
     sc = two_blocks(friction=friction)
     b = sc["boundary"]
     for k in ("sym_x", "sym_y"):
