@@ -17,11 +17,14 @@ records both).
 import math
 
 import numpy as np
+from mpi4py import MPI
 
 from contact import fem
 from contact.analysis import stress
 from contact.solvers import residuals as res
 from contact.analysis import convergence
+from contact.mesh import MeshError
+from contact.mesh.grading import lattice_planes
 
 #: summary.json key -> words
 QUANTITIES = {"max_displacement": "max |u|", "normal_force": "contact force N",
@@ -137,19 +140,19 @@ def slab_errors(problem, axis, cells=None, coords=None):
 
 def file_bins(problem):
     """None where the mesh's vertices lie on a lattice of planes (a box, or a tensor-product
-    file mesh); else, per axis, about its cells along it: the extent over the mean cell's
-    edge, (volume / cells)^(1/3), at least 4 (an unstructured mesh of a box, graded by a
-    per-axis map: mesh/grading.py box_planes)."""
-    comm = problem.comm.tompi4py()
-    xyz = problem.coordinates.getArray(readonly=True).reshape(-1, 3)    # owned vertices
-    counts, ext = [], []
-    for a in range(3):
-        p = np.unique(np.concatenate(comm.allgather(np.unique(xyz[:, a]))))
-        span = p[-1] - p[0] if p.size else 0.0
-        counts.append(int(np.count_nonzero(np.diff(p) > 1e-9 * span)) + 1)
-        ext.append(span)
-    if int(np.prod(counts)) == problem.coordinates.getSize() // 3:
+    file mesh: mesh/grading.py lattice_planes); else, per axis, about its cells along it:
+    the extent over the mean cell's edge, (volume / cells)^(1/3), at least 4 (an
+    unstructured mesh of a box, graded by a per-axis map: grading.box_planes)."""
+    try:
+        lattice_planes(problem.coords, problem.coordinates.getSize() // 3, problem.comm)
         return None
+    except MeshError:
+        pass
+    comm, x = problem.comm.tompi4py(), problem.coords
+    lo, hi = np.empty(3), np.empty(3)
+    comm.Allreduce(x.min(axis=0) if x.size else np.full(3, np.inf), lo, op=MPI.MIN)
+    comm.Allreduce(x.max(axis=0) if x.size else np.full(3, -np.inf), hi, op=MPI.MAX)
+    ext = hi - lo
     h = (float(np.prod(ext)) / comm.allreduce(problem.conn.shape[0])) ** (1.0 / 3.0)
     return [max(4, int(round(e / h))) for e in ext]
 
