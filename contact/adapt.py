@@ -188,6 +188,24 @@ def pilot_scene(sc, auto):
     return out
 
 
+def _check_pilot(pilot):
+    """One line, before the pilot is solved, where it would have no coarser level to
+    compare with, so no error indicator to grade by."""
+    h = pilot.hierarchy
+    below = pilot.level - (1 if h.quadratic else 0)
+    if below >= 1 and pilot.c2f_asked != 0:
+        return
+    kind = pilot.scene["mesh"].get("type", "box")
+    files = kind in ("gmsh", "file") or kind == "bodies" and any(
+        "mesh" in b for b in pilot.scene["mesh"]["bodies"].values())
+    why = ("-c2f_levels 0 solves no coarser level" if pilot.c2f_asked == 0 else
+           "a gmsh or file mesh is one level: -mesh_refine 1 or more, the file's mesh the "
+           "coarser one" if files else
+           f"Nd = {pilot.nd} has no factor of 2: an -nd with one more factor of 2")
+    raise ValueError(f"mesh.grading auto: its pilot at Nd = {pilot.nd} would have no coarser "
+                     f"level, so no error indicator ({why})")
+
+
 def graded_scene(sc, comm, auto, solved=None, finer=1):
     """(scene, info): `sc` with its `auto` axes graded from the indicator of `solved` (a
     pilot solved first, and released, where solved is None); info for summary.json's
@@ -196,7 +214,10 @@ def graded_scene(sc, comm, auto, solved=None, finer=1):
     t0, pilot_time = time.perf_counter(), None
     if solved is None:       # two levels below the pilot where Nd has them: its indicator
         with options.inserted({"c2f_levels": "2"}):         # and each slab's local order
-            solved = ContactProblem(pilot_scene(sc, auto), comm, goal=goal()).solve()
+            pilot = ContactProblem(pilot_scene(sc, auto), comm, goal=goal())
+            _check_pilot(pilot)
+            solved = pilot.solve()
+        del pilot
         pilot_time = time.perf_counter() - t0
     scene, info = design(sc, solved, auto, finer)
     nd, el = solved.nd, solved.element

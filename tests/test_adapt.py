@@ -391,15 +391,23 @@ def test_auto_grading_same_on_two_ranks(tmp_path, quantity, tol, rel):
     (["-mesh_grading", "auto", "-mesh_grading_pilot", 8], "the pilot needs Nd / 8 >= 1"),
     (["-mesh_grading", "auto", "-mesh_grading_pilot", 2, "-scene",
       f"{ROOT}/runs/scenes/hertz.yaml"], "a gmsh or file mesh's pilot is the mesh itself"),
+    (["-mesh_grading", "auto", "-scene", f"{ROOT}/runs/scenes/hertz.yaml"],
+     "pilot at Nd = 4 would have no coarser level, so no error indicator (a gmsh or file "
+     "mesh is one level: -mesh_refine 1 or more"),
+    (["-mesh_grading", "auto", "-mesh_grading_pilot", 4], "pilot at Nd = 1 would have no "
+     "coarser level, so no error indicator (Nd = 1 has no factor of 2"),
+    (["-mesh_grading", "auto", "-c2f_levels", 0], "(-c2f_levels 0 solves no coarser level)"),
     (["-error_target", 0.01, "-error_refine", "local"], "-error_refine must be graded or"),
     (["-mesh_grading", "auto", "-error_estimate", 0], "which -error_estimate 0 turns off"),
     (["-mesh_grading", "auto", "-error_quantity", "stress"], "-error_quantity must be one of"),
     (["-mesh_grading", "auto", "-error_quantity", "force", "-element", "bbar"],
      "-error_quantity force grades q1 and q2 meshes, not bbar")])
 def test_bad_grading_options(tmp_path, args, words):
+    """Refused in one line, before any solve (a pilot's too)."""
     p = cli(["-nd", 4, *args, "-output_dir", tmp_path])
     assert p.returncode == 1 and words in p.stderr, p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+    assert "pilot solved" not in p.stdout and "c2f:" not in p.stdout, p.stdout
 
 
 BAD = [("auto", None),
