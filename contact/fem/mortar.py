@@ -172,14 +172,20 @@ def _cells(lo, hi, origin, size, dims):
     return key[ok], box[ok]
 
 
-def candidate_pairs(xs, fs, xm, fm, inflate=0.25):
+def candidate_pairs(xs, fs, xm, fm, inflate=0.25, axis=None):
     """(slave face, master face) pairs (p, 2) whose boxes (face_boxes) overlap, sorted,
     found through a uniform grid of cells as large as the largest box: each box is put in
     the <= 8 cells it overlaps, pairs meet in a shared cell, then are checked and deduplicated
     (work and memory of the order of the faces and pairs, not of their product, while the
-    faces are of comparable size: one very large face makes the cells large)."""
+    faces are of comparable size: one very large face makes the cells large).
+    axis: the slave faces' common normal e_axis (a flat slave face): the boxes are those
+    of the faces seen along it (at any distance along it: a clearance between the bodies
+    wider than `inflate` times the faces, which the 3D boxes miss); None: in 3D."""
     if fs.shape[0] == 0 or fm.shape[0] == 0:
         return np.zeros((0, 2), dtype=np.int64)
+    if axis is not None:
+        xs, xm = xs.copy(), xm.copy()
+        xs[:, axis] = xm[:, axis] = 0.0
     slo, shi = face_boxes(xs, fs, inflate)
     mlo, mhi = face_boxes(xm, fm, inflate)
     size = 1.001 * max((shi - slo).max(), (mhi - mlo).max())
@@ -347,7 +353,7 @@ def _reduce(code, vals):
 
 
 def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=None,
-                    chunk=CHUNK):
+                    chunk=CHUNK, axis=None):
     """The dual mortar coupling (Mortar) of the slave surface (nodes xs (ns, 3), faces fs
     (nfs, 4)) and the master surface (xm (nm, 3), fm (nfm, 4)), faces counter-clockwise
     about their body's outward normal (module docstring); either or both of 9-node faces
@@ -355,7 +361,8 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
     quadrilaterals, mapped by their 9 nodes; a q1 body's faces beside a q2 body's).
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
-    with `inflate`. points: the triangle rule's points per direction (triangle_rule; None:
+    with `inflate` and `axis` (a flat slave face's normal axis: faces seen along it are
+    candidates at any distance). points: the triangle rule's points per direction (triangle_rule; None:
     POINTS by the faces' nodes).
     comm: an mpi4py communicator whose ranks all pass the same surfaces: each rank
     integrates its share of the pairs' chunks (`chunk` pairs each, _share), the shares
@@ -369,7 +376,7 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
         raise ValueError(f"the slave and master faces must have 4 or 9 nodes each, got "
                          f"{fs.shape[1]} and {fm.shape[1]}")
     if pairs is None:
-        pairs = candidate_pairs(xs, fs, xm, fm, inflate)
+        pairs = candidate_pairs(xs, fs, xm, fm, inflate, axis)
     planes = _planes(xs[fs[:, :4]])
     A, De = dual_coefficients(xs[fs])
     if points is None:

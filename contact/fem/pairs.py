@@ -233,7 +233,7 @@ class ContactPair:
                                 f"straight (an edge node off "
                                 f"its edge by {max(o1, o2):.1e} of it) with the edge nodes "
                                 f"in their middle halves; use -element q1")
-        mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py())
+        mt = mortar_matrices(xs, fs, xm, fm, comm=comm.tompi4py(), axis=s.axis)
         rowsum = np.bincount(mt.rows, mt.values, minlength=xs.shape[0])
         ok = rowsum > MIN_COVER * np.maximum(mt.D, 1e-300)
         keep = ok[mt.rows]

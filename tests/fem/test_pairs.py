@@ -114,6 +114,33 @@ def test_patch_shifted(comm):
     assert np.all(np.abs(lam - P) < 1e-3 * P)
 
 
+@pytest.mark.parametrize("clearance", [0.1, 0.3])
+def test_clearance_closed_by_the_push(comm, clearance):
+    """The punch first `clearance` above the base (its faces 1/7 wide: a clearance of 0.7
+    and 2.1 faces), its top moved down by the clearance + 0.05: the answer of the bodies
+    touching and moved by 0.05, u shifted by the clearance in the punch (to 1e-9), every
+    slave node covered. (Candidate faces were found by 3D boxes grown by a quarter of a
+    face: 'the master faces of base never face the slave faces of punch'.)"""
+    def scene(c):
+        sc = two_blocks(push=(0.0, 0.0, -(c + 0.05)))
+        sc["bodies"]["punch"]["lower"][2] += c
+        sc["bodies"]["punch"]["upper"][2] += c
+        b = sc["boundary"]
+        b["top"]["plane"] = ["z", 1.0 + c]
+        b["interface"].update(plane=["z", 0.5 + c], master={"body": "base", "plane": ["z", 0.5]})
+        return scenes.validate(sc)
+    near, far = solve(scene(0.0), comm), solve(scene(clearance), comm)
+    assert far.converged and far.disc.pair.covered.all()
+    assert abs(far.normal_force() - near.normal_force()) < 1e-9 * near.normal_force()
+    (xn, un), (xf, uf) = (gather(p)[:2] for p in (near, far))
+    punch = xf[:, 2] > 0.5 + 1e-12
+    xf[punch, 2] -= clearance
+    uf[punch, 2] += clearance
+    on = [np.lexsort(x.T) for x in (xn, xf)]
+    assert np.abs(xn[on[0]] - xf[on[1]]).max() < 1e-12
+    assert rel_err(uf[on[1]], un[on[0]]) < 1e-9
+
+
 def test_patch_fails_without_the_mortar_projection(comm, monkeypatch):
     """The patch test sees the coupling: with the master's motion left out of the relative
     displacement (E = 0: the punch on a rigid plane) u is off by the base's compression."""
