@@ -17,10 +17,10 @@ axis whose grading is `auto` (scene_grading.py; `-mesh_grading auto`: every axis
      are one graded family) work as on any box; summary.json's `grading` holds the points
      (a scene may give them back: `grading: {x: {points: [...]}}`).
 
-A scene with bodies (mesh/bodies.py, q1) grades each body's auto axes (its `grading:
-auto`, or every body's with -mesh_grading auto) from the indicator on its own cells, its
-slabs those of its box (a curved lower_surface moves z, not the slabs); no local orders
-(the element's).
+A scene with bodies (mesh/bodies.py; q1, bbar, q2, q2p1, side by side too) grades each
+body's auto axes (its `grading: auto`, or every body's with -mesh_grading auto) from the
+indicator on its own cells, its slabs those of its box (a curved lower_surface moves z,
+not the slabs); no local orders (its element's: 1 for q1 and bbar, 2 for q2 and q2p1).
 
 A gmsh or file mesh that is a tensor-product hexahedral mesh of a box (gmsh's extruded
 layers or transfinite volumes: mesh/grading.py lattice_planes) grades as
@@ -72,10 +72,6 @@ def axes(sc):
         if how == "auto" and not auto:
             raise ValueError("mesh.grading auto needs a box mesh or box bodies, not only "
                              "gmsh bodies")
-        q2 = sorted({e for e in body_elements(sc) if e != "q1"}) if auto else []
-        if q2:                           # (the scene's element, or a body's own)
-            raise ValueError(f"mesh.grading auto on bodies is for q1 (for now), not "
-                             f"{q2[0]}")
     else:                   # a box, or a gmsh or file mesh (a box's lattice: hierarchy.py)
         auto = list("xyz") if how == "auto" else scene_grading.auto_axes(mesh)
     if auto:
@@ -96,13 +92,13 @@ def design(sc, solved, auto, finer=1):
                          "level, so no error indicator (a larger -nd, or -c2f_levels >= 1)")
     out = copy.deepcopy(sc)
     mesh = out["mesh"]
-    order = 2 if solved.element in QUADRATIC else 1
+    nodes = 2 if solved.element in QUADRATIC else 1       # q2's cells: its nodes' mesh's
     ratio = options.get("mesh_grading_max_ratio")
     info = {}
     # the finest level's Nd over the scene's: 1, but 2^K with a gmsh body (-nd its coarse
     # level's, -mesh_refine K)
     refined = max(1, solved.nd // solved.scene["mesh"]["nd"])
-    for key, box, counts, i, slabs, coarse in _targets(mesh, solved, auto):
+    for key, box, counts, i, slabs, coarse, order in _targets(mesh, solved, auto):
         g = box.get("grading")
         g = box["grading"] = {} if not isinstance(g, dict) else g
         edges, E = slabs
@@ -110,7 +106,7 @@ def design(sc, solved, auto, finer=1):
             coarse = None
         # a gmsh or file mesh (counts None): the pilot's planes are the run's own
         cells = finer * (edges.size - 1) if counts is None else \
-            counts[i] * mesh["nd"] * refined * (2 if order == 2 else 1)
+            counts[i] * mesh["nd"] * refined * nodes
         pts = grading.equidistribute(edges, E, order, cells, coarse, max_ratio=ratio)
         g[grading.AXES[i]] = {"points": [round(float(p), 10) for p in pts]}
         h = np.diff(grading.points(np.linspace(0.0, 1.0, cells + 1), pts)) * (
@@ -123,18 +119,21 @@ def design(sc, solved, auto, finer=1):
 def _targets(mesh, solved, auto):
     """Per graded axis: (info key, the box's dict (lower, upper, grading: the mesh section
     or a body), its cells per Nd, the axis index, (edges, E) of the solved problem's
-    indicator along it, the coarser level's E or None). A body's slabs are its own cells'
-    (disc.body_of), on its box's lattice placed by its grading alone (level.reference
-    through mesh/bodies.py's map without lower_surface: the slabs of a curved lower face
-    are those of its box); no coarser level's (local orders: the element's)."""
+    indicator along it, the coarser level's E or None, the element's order). A body's
+    slabs are its own cells' (disc.body_of), on its box's lattice placed by its grading
+    alone (level.reference through mesh/bodies.py's map without lower_surface: the slabs
+    of a curved lower face are those of its box); no coarser level's (local orders: its
+    element's, 1 for q1 and bbar beside q2's nodes, 2 for q2 and q2p1)."""
     if mesh.get("type", "box") != "bodies":
         counts = mesh["cells_per_nd"] if mesh.get("type", "box") == "box" else None
+        order = 2 if solved.element in QUADRATIC else 1
         for a in auto:
             i = grading.AXES.index(a)
             coarse = solved.coarse_slabs[i][1] if solved.coarse_slabs is not None else None
-            yield a, mesh, counts, i, estimate.slab_errors(solved, i), coarse
+            yield a, mesh, counts, i, estimate.slab_errors(solved, i), coarse, order
         return
     disc, names, places = solved.disc, list(mesh["bodies"]), {}
+    orders = [2 if e in QUADRATIC else 1 for e in body_elements(solved.scene)]
     for name, a in auto:
         b, j = mesh["bodies"][name], names.index(name)
         if name not in places:                  # the solved scene's body, its box's places
@@ -142,7 +141,8 @@ def _targets(mesh, solved, auto):
                                            dict(disc.bodies[name], lower_surface=None))
         i = grading.AXES.index(a)
         yield f"{name}.{a}", b, b["cells"], i, estimate.slab_errors(
-            solved, i, cells=np.flatnonzero(disc.body_of == j), coords=places[name]), None
+            solved, i, cells=np.flatnonzero(disc.body_of == j), coords=places[name]), None, \
+            orders[j]
 
 
 def goal():
