@@ -172,7 +172,7 @@ def _cells(lo, hi, origin, size, dims):
     return key[ok], box[ok]
 
 
-def candidate_pairs(xs, fs, xm, fm, inflate=0.25, axis=None):
+def candidate_pairs(xs, fs, xm, fm, inflate=0.25, axis=None, reach=False):
     """(slave face, master face) pairs (p, 2) whose boxes (face_boxes) overlap, sorted,
     found through a uniform grid of cells as large as the largest box: each box is put in
     the <= 8 cells it overlaps, pairs meet in a shared cell, then are checked and deduplicated
@@ -180,7 +180,11 @@ def candidate_pairs(xs, fs, xm, fm, inflate=0.25, axis=None):
     faces are of comparable size: one very large face makes the cells large).
     axis: the slave faces' common normal e_axis (a flat slave face): the boxes are those
     of the faces seen along it (at any distance along it: a clearance between the bodies
-    wider than `inflate` times the faces, which the 3D boxes miss); None: in 3D."""
+    wider than `inflate` times the faces, which the 3D boxes miss); None: in 3D. reach
+    (with axis None): also the master faces whose centres lie within 2 d + r_s + r_m of a
+    slave face's centre, d the distance to its nearest master face centre, r_s and r_m
+    the slave face's and the largest master face's radii (`_reached`: a curved pair
+    across a clearance)."""
     if fs.shape[0] == 0 or fm.shape[0] == 0:
         return np.zeros((0, 2), dtype=np.int64)
     if axis is not None:
@@ -200,8 +204,26 @@ def candidate_pairs(xs, fs, xm, fm, inflate=0.25, axis=None):
     s = np.repeat(bs, count)
     m = bm[np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())]
     hit = np.all((slo[s] <= mhi[m]) & (mlo[m] <= shi[s]), axis=1)
-    code = np.unique(s[hit] * fm.shape[0] + m[hit])
+    code = s[hit] * fm.shape[0] + m[hit]
+    if reach and axis is None:
+        code = np.concatenate([code, _reached(xs, fs, xm, fm)])
+    code = np.unique(code)
     return np.stack([code // fm.shape[0], code % fm.shape[0]], axis=1)
+
+
+def _reached(xs, fs, xm, fm):
+    """candidate_pairs' codes s * nfm + m of the master faces m near slave face s across a
+    clearance (its docstring), by a k-d tree of the master faces' centres."""
+    from scipy.spatial import cKDTree
+    cs, cm = xs[fs[:, :4]].mean(axis=1), xm[fm[:, :4]].mean(axis=1)
+    rs = np.linalg.norm(xs[fs[:, :4]] - cs[:, None], axis=2).max(axis=1)
+    rm = np.linalg.norm(xm[fm[:, :4]] - cm[:, None], axis=2).max()
+    tree = cKDTree(cm)
+    d, _ = tree.query(cs)
+    near = tree.query_ball_point(cs, 2.0 * d + rs + rm)
+    count = np.array([len(n) for n in near], dtype=np.int64)
+    m = np.concatenate([np.asarray(n, dtype=np.int64) for n in near] + [np.zeros(0, np.int64)])
+    return np.repeat(np.arange(fs.shape[0], dtype=np.int64), count) * fm.shape[0] + m
 
 
 def _cross2(a, b):
@@ -362,7 +384,8 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
 
     pairs: the candidate (slave face, master face) pairs (p, 2); None: candidate_pairs
     with `inflate` and `axis` (a flat slave face's normal axis: faces seen along it are
-    candidates at any distance). points: the triangle rule's points per direction (triangle_rule; None:
+    candidates at any distance; None: in 3D, with the faces a clearance away too,
+    candidate_pairs' reach). points: the triangle rule's points per direction (triangle_rule; None:
     POINTS by the faces' nodes).
     comm: an mpi4py communicator whose ranks all pass the same surfaces: each rank
     integrates its share of the pairs' chunks (`chunk` pairs each, _share), the shares
@@ -376,7 +399,7 @@ def mortar_matrices(xs, fs, xm, fm, pairs=None, points=None, inflate=0.25, comm=
         raise ValueError(f"the slave and master faces must have 4 or 9 nodes each, got "
                          f"{fs.shape[1]} and {fm.shape[1]}")
     if pairs is None:
-        pairs = candidate_pairs(xs, fs, xm, fm, inflate, axis)
+        pairs = candidate_pairs(xs, fs, xm, fm, inflate, axis, reach=True)
     planes = _planes(xs[fs[:, :4]])
     A, De = dual_coefficients(xs[fs])
     if points is None:

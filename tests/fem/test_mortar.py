@@ -118,16 +118,18 @@ def test_gap_along_the_normal_changes_nothing(turn):
 
 def test_clearance_wider_than_the_faces_along_the_axis():
     """A master 0.6 below the slave (3 of the slave's faces, 0.2 wide): the faces seen
-    along the slave's normal axis are candidates at any distance, so the coupling is the
-    touching one (3D boxes grown by a quarter of a face miss it: nothing coupled)."""
+    along the slave's normal axis are candidates at any distance, and so are in 3D those
+    within reach of each slave face (candidate_pairs' reach), so the coupling is the
+    touching one either way; the boxes grown by a quarter of a face alone miss them."""
     xs, fs = grid(5, 5, up=False)
     xm, fm = grid(7, 7, up=True, **MASTERS["shifted"])
     touching = dense(mortar_matrices(xs, fs, xm, fm), xm.shape[0])
     far = xm - [0.0, 0.0, 0.6]
-    mo = mortar_matrices(xs, fs, far, fm, axis=2)
-    assert np.abs(dense(mo, xm.shape[0]) - touching).max() < 1e-15
-    assert mo.covered.all()
-    assert not mortar_matrices(xs, fs, far, fm).covered.any()
+    for axis in (2, None):
+        mo = mortar_matrices(xs, fs, far, fm, axis=axis)
+        assert np.abs(dense(mo, xm.shape[0]) - touching).max() < 1e-15, axis
+        assert mo.covered.all()
+    assert candidate_pairs(xs, fs, far, fm).size == 0
 
 
 def test_master_facing_away_is_not_coupled():
