@@ -49,14 +49,14 @@ def dofs(scene, element):
     """The displacement dofs of `scene` with `element`, or None where they cannot be
     counted before the mesh is read (mesh files)."""
     m = scene["mesh"]
-    if m.get("type") == "bodies":                        # several boxes (scene_bodies.py)
-        if any("mesh" in b for b in m["bodies"].values()):     # a gmsh body: read first
-            return None
-        return sum(3 * math.prod(int(m.get("nd", 1)) * int(c) + 1 for c in b["cells"])
-                   for b in m["bodies"].values())
+    up = 2 if element in ("q2", "q2p1") else 1          # q2: nodes on the refined mesh
+    if m.get("type") == "bodies":                        # several boxes (scene_bodies.py;
+        if any("mesh" in b for b in m["bodies"].values()):     # one q2 body: every body
+            return None                                  # on q2's nodes); a gmsh body:
+        return sum(3 * math.prod(up * int(m.get("nd", 1)) * int(c) + 1 for c in b["cells"])
+                   for b in m["bodies"].values())       # read first
     if m.get("type", "box") != "box":
         return None
-    up = 2 if element in ("q2", "q2p1") else 1          # q2: nodes on the refined mesh
     n = [up * int(m.get("nd", 1)) * int(c) for c in m.get("cells_per_nd", [1, 1, 1])]
     return 3 * math.prod(c + 1 for c in n)
 

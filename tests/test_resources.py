@@ -7,10 +7,11 @@ import resource
 
 import numpy as np
 import pytest
-from conftest import ROOT, cli, paper_scene, skip_in_parallel
+from conftest import ROOT, cli, paper_scene, skip_in_parallel, two_blocks
 from petsc4py import PETSc
 
-from contact import resources
+from contact import resources, scene as scenes
+from contact.fem.discretisation import element_of
 from contact.problem import ContactProblem
 
 
@@ -22,6 +23,20 @@ def test_dofs_counted_before_the_mesh_are_the_meshs(element):
     sc["mesh"]["cells_per_nd"] = [3, 2, 1]
     pr = ContactProblem(sc, PETSc.COMM_WORLD)
     assert resources.dofs(sc, element) == pr.n_dofs
+
+
+@pytest.mark.parametrize("elements", [("q1", "q1"), ("q2", "q2"), ("q2", "q1"),
+                                      ("q2p1", "bbar")])
+def test_dofs_of_bodies_counted_before_the_mesh(elements):
+    """Two box bodies (tests/conftest.py two_blocks, Nd 2), each its element: one q2 or
+    q2p1 body puts every body on q2's nodes (counted 7x short before)."""
+    sc = two_blocks()
+    sc["mesh"] = {"nd": 2}
+    for b, e in zip(("base", "punch"), elements):
+        sc["bodies"][b]["element"] = e
+    sc = scenes.validate(sc)
+    pr = ContactProblem(sc, PETSc.COMM_WORLD)
+    assert resources.dofs(sc, element_of(sc)) == pr.n_dofs
 
 
 def test_mesh_files_are_not_counted():
