@@ -92,7 +92,8 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     contact/adapt.py) until the estimated relative error of -error_quantity is at most
     `target`. A gmsh or file mesh: the file refined K, K + 1, ... times (-mesh_refine K,
     at least 2: three levels to estimate from; every level solved), graded where it is a
-    box's lattice (adapt.py). Returns (last problem, its summary with `error_target`, the
+    box's lattice (adapt.py). Box bodies: Nd doubled, each body graded on its own cells
+    (by the energy's indicator: the force's and max |u|'s duals are one body's). Returns (last problem, its summary with `error_target`, the
     reason it stopped short or None)."""
     quantity, refine = options.get("error_quantity"), options.get("error_refine")
     if quantity not in TARGET_KEYS:
@@ -101,14 +102,21 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     if refine not in ("graded", "uniform"):
         raise ValueError(f"-error_refine must be graded or uniform, got {refine!r}")
     kind = sc["mesh"].get("type", "box")
-    if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file"):
-        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh "
-                         f"(Nd or -mesh_refine grows), got {target:g} and a {kind} mesh")
+    bodies = sc["mesh"].get("bodies", {}) if kind == "bodies" else {}
+    if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file", "bodies") or any(
+            "mesh" in b for b in bodies.values()):
+        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh or box "
+                         f"bodies (Nd or -mesh_refine grows), got {target:g} and a "
+                         + ("gmsh body" if kind == "bodies" else f"{kind} mesh"))
     key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
-    fixed = sc["mesh"].get("grading") if isinstance(sc["mesh"].get("grading"), dict) else {}
-    grade = auto or ([a for a in "xyz" if a not in fixed] if refine == "graded" else [])
-    history, failure, info = [], None, None
-    k = max(options.get("mesh_refine"), 2) if kind != "box" else None
+    fixed = lambda m: m["grading"] if isinstance(m.get("grading"), dict) else {}  # noqa: E731
+    grade = auto or ([] if refine != "graded" else [a for a in "xyz" if a not in fixed(
+        sc["mesh"])] if not bodies else [(n, a) for n, b in bodies.items() for a in "xyz"
+                                          if a not in fixed(b)])
+    # a graded pair's goal: the energy's indicator (goal.py's duals are one body's)
+    goal = adapt.goal() if grade and not bodies else None
+    history, failure, info, peaks = [], None, None, []
+    k = max(options.get("mesh_refine"), 2) if kind in ("gmsh", "file") else None
     c2f = PETSc.Options().hasName("c2f_levels")
 
     def levels():
@@ -122,8 +130,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
             sc, info = adapt.graded_scene(sc, comm, auto)
     while True:
         with levels():
-            problem = ContactProblem(copy.deepcopy(sc), comm,
-                                     goal=adapt.goal() if grade else None)
+            problem = ContactProblem(copy.deepcopy(sc), comm, goal=goal)
             problem.grading_info = info
             problem.skipped += skipped
             problem.solve()
@@ -148,9 +155,13 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
             break
         nxt = resources.dofs(dict(sc, mesh=dict(sc["mesh"], nd=2 * problem.nd)),
                              problem.element) if k is None else 8 * s["dofs"]  # (about)
-        if nxt > limit:
-            failure = (f"the next run (Nd = {2 * problem.nd}, {nxt:,} dofs) exceeds "
-                       f"-error_max_dofs {limit:,}; reached {quantity} "
+        peaks.append((s["dofs"], resources.peak()))
+        short = resources.check_next(comm, peaks, nxt) if options.get("memory_check") \
+            else None
+        if nxt > limit or short:
+            failure = (f"the next run (Nd = {2 * problem.nd}, {nxt:,} dofs) "
+                       + (short if short else f"exceeds -error_max_dofs {limit:,}")
+                       + f"; reached {quantity} "
                        + (f"{rel:.2e}" if rel is not None else "unestimated"))
             break
         if k is None:

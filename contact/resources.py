@@ -130,6 +130,42 @@ def _fmt(b):
     return f"{b / GiB:.1f} GiB" if b >= 0.1 * GiB else f"{b / MiB:.0f} MiB"
 
 
+def peak():
+    """This process's largest resident size so far, bytes (getrusage)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0          # (KiB)
+
+
+def check_next(comm, runs, ndofs):
+    """-error_target's next run of `ndofs` dofs: the words of why it would not fit (the
+    same on every rank), None where it would. runs: [(dofs, this rank's peak after it),
+    ...] of the runs so far (each larger than the one before: `peak`). The need: the last
+    run's measured bytes per dof over the floor, times its growth from the run before
+    (at least 1: a graded run's line smoothers hold longer lines as its cells thin), for
+    ndofs; the model of `check` sees neither the lines nor a pair's mortar before the
+    mesh (a graded two-body run at 836,550 dofs: 2.8 GiB, the model 1.4). The room: the
+    node's (MemAvailable, the cgroup's) and each rank's (ulimit), with the memory the ranks
+    hold now counted in (their run is freed before the next one)."""
+    mpi = comm.tompi4py()
+    floor = MODEL[("q1", "newton")][0] * MiB
+    per = [max(b - floor, 0.0) / n for n, b in runs[-2:]]
+    need = floor + per[-1] * max(1.0, per[-1] / per[0] if per[0] > 0 else 1.0) * ndofs
+    held = _status("VmRSS")
+    node = mpi.Split_type(MPI.COMM_TYPE_SHARED)
+    node_need, node_held = node.allreduce(need), node.allreduce(held)
+    room_node = node.bcast(node_headroom() if node.rank == 0 else None)
+    node.Free()
+    room_proc = process_headroom()
+    short = []
+    if room_node is not None and node_need > room_node + node_held:
+        short.append(f"would need about {node_need / GiB:.2f} GiB on a node (this run's "
+                     f"bytes per dof), more than its {(room_node + node_held) / GiB:.2f} GiB")
+    if room_proc is not None and need - held > room_proc:
+        short.append(f"would need about {_fmt(need)} on a rank (this run's bytes per dof), "
+                     f"more than its limit leaves (ulimit -v / -d)")
+    worst = [w for w in mpi.allgather(short) if w]
+    return worst[0][0] if worst else None
+
+
 def check(comm, ndofs, element, mode, lines=0.0):
     """Raise ResourceError (the same on every rank) where `ndofs` with `element` in `mode`
     does not fit the ranks of `comm` (module docstring); returns the estimate (bytes per
