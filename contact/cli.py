@@ -93,8 +93,9 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     `target`. A gmsh or file mesh: the file refined K, K + 1, ... times (-mesh_refine K,
     at least 2: three levels to estimate from; every level solved), graded where it is a
     box's lattice (adapt.py). Box bodies: Nd doubled, each body graded on its own cells
-    (by the energy's indicator: the force's and max |u|'s duals are one body's). Returns (last problem, its summary with `error_target`, the
-    reason it stopped short or None)."""
+    (by the energy's indicator: the force's and max |u|'s duals are one body's). Returns
+    (last problem, its summary with `error_target`, the reason it stopped short or
+    None)."""
     quantity, refine = options.get("error_quantity"), options.get("error_refine")
     if quantity not in TARGET_KEYS:
         raise ValueError(f"-error_quantity must be one of {', '.join(TARGET_KEYS)}, got "

@@ -204,8 +204,8 @@ def _punch_pair(nd=4):
 def test_error_target_on_bodies(tmp_path):
     """Box bodies: Nd 4, 8, 16, Nd 16 graded per body by Nd 8's indicator (the first with
     one), estimated at 0.27 % in the energy: a target of 1 % met there. The true error
-    against J_PAIR (measured 0.34 %) at most twice the estimate. (Before: "-error_target needs ... a box, gmsh or file mesh".) A gmsh body:
-    refused in one line."""
+    against J_PAIR (measured 0.34 %) at most twice the estimate. (Before: "-error_target
+    needs ... a box, gmsh or file mesh".) A gmsh body: refused in one line."""
     import json
     scene = tmp_path / "pair.yaml"
     scene.write_text(yaml.safe_dump(_punch_pair()))
