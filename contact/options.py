@@ -90,13 +90,11 @@ REGISTRY = [
            "the contact force and the energy from the run's own coarse-to-fine levels "
            "(Richardson; three levels or more; their Newton iterations then go to "
            "-newton_rtol 1e-10)", "BOOL"),
-    Option("error_target", 0.0, float, "refine (boxes and box bodies: Nd doubled; files: "
-           "-mesh_refine + 1; graded by the previous run's indicator: -error_refine; bodies "
-           "by the energy's) until the estimated error of -error_quantity is <= TOL; prints "
-           "error against run time as it goes; stops with a named reason at -error_max_dofs, "
-           "where the next run would not fit the memory at this run's bytes per dof, or "
-           "where the levels are not asymptotic (then exit status 1, the last run's results "
-           "written); 0: off", "TOL"),
+    Option("error_target", 0.0, float, "refine (boxes, box bodies: Nd doubled; files: "
+           "-mesh_refine + 1; graded by the last run's indicator: -error_refine) until the "
+           "estimated error of -error_quantity is <= TOL, printing error against time; stops "
+           "at -error_max_dofs, a next run the memory cannot hold, or levels not asymptotic "
+           "(exit status 1, the last run's results written); 0: off", "TOL"),
     Option("error_quantity", "energy", str, "the quantity -error_target bounds and a grading "
            "aims at (force, max_u: the indicator weighed by its dual, analysis/goal.py)",
            "energy|force|max_u"),
