@@ -191,13 +191,9 @@ def pilot_scene(sc, auto):
 def _check_pilot(pilot):
     """One line, before the pilot is solved, where it would have no coarser level to
     compare with, so no error indicator to grade by."""
-    h = pilot.hierarchy
-    below = pilot.level - (1 if h.quadratic else 0)
+    below, files = pilot.levels_below()
     if below >= 1 and pilot.c2f_asked != 0:
         return
-    kind = pilot.scene["mesh"].get("type", "box")
-    files = kind in ("gmsh", "file") or kind == "bodies" and any(
-        "mesh" in b for b in pilot.scene["mesh"]["bodies"].values())
     why = ("-c2f_levels 0 solves no coarser level" if pilot.c2f_asked == 0 else
            "a gmsh or file mesh is one level: -mesh_refine 1 or more, the file's mesh the "
            "coarser one" if files else

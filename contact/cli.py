@@ -110,10 +110,13 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
                          f"bodies (Nd or -mesh_refine grows), got {target:g} and a "
                          + ("gmsh body" if kind == "bodies" else f"{kind} mesh"))
     key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
-    fixed = lambda m: m["grading"] if isinstance(m.get("grading"), dict) else {}  # noqa: E731
-    grade = auto or ([] if refine != "graded" else [a for a in "xyz" if a not in fixed(
-        sc["mesh"])] if not bodies else [(n, a) for n, b in bodies.items() for a in "xyz"
-                                          if a not in fixed(b)])
+    def free(m):                        # the axes a box (or a body) does not grade itself
+        g = m.get("grading")
+        return [a for a in "xyz" if not (isinstance(g, dict) and a in g)]
+    grade = auto
+    if not auto and refine == "graded":
+        grade = [(n, a) for n, b in bodies.items() for a in free(b)] if bodies else \
+            free(sc["mesh"])
     # a graded pair's goal: the energy's indicator (goal.py's duals are one body's)
     goal = adapt.goal() if grade and not bodies else None
     history, failure, info, peaks = [], None, None, []

@@ -150,6 +150,15 @@ class ContactProblem:
             raise ValueError(f"-c2f_levels must be >= -1 (-1: automatic), got {levels}")
         return levels
 
+    def levels_below(self):
+        """(the hierarchy's levels below this one that a coarse-to-fine start can solve,
+        whether a mesh file bounds them: one level, -mesh_refine K more; else Nd's factors
+        of 2)."""
+        h = self.hierarchy
+        files = not (h.kind == "box" or h.kind == "bodies" and not any(
+            "mesh" in b for b in self.scene["mesh"]["bodies"].values()))
+        return self.level - (1 if h.quadratic else 0), files
+
     def _coarse_start(self, prolong=True):
         """Solve the scene on the hierarchy's next coarser level (itself started from the
         one below, as many levels as asked: -1, automatic, is every coarser level with
@@ -161,17 +170,15 @@ class ContactProblem:
         levels = self.c2f_asked
         h = self.hierarchy
         lowest = 1 if h.quadratic else 0          # q2's nodes: a level above its elements'
-        below = self.level - lowest
+        below, files = self.levels_below()
         if levels == -1:
             levels = sum(lv.nd >= 4 for lv in h.levels[lowest:self.level]) \
                 if options.solver_mode(self.scene) == "newton" else 0
         if levels > below:
             note = (f"coarse-to-fine levels beyond {below} (the mesh hierarchy has "
                     f"{below} below Nd = {self.nd}: "
-                    + ("Nd has no more factors of 2)" if h.kind == "box" or
-                       h.kind == "bodies" and not any(
-                           "mesh" in b for b in self.scene["mesh"]["bodies"].values())
-                       else "a mesh file is one level: -mesh_refine K)"))
+                    + ("a mesh file is one level: -mesh_refine K)" if files else
+                       "Nd has no more factors of 2)"))
             if note not in self.skipped:
                 self.skipped.append(note)
             levels = below

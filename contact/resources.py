@@ -135,6 +135,17 @@ def _fmt(b):
 GROWTH_MAX = 1.5
 
 
+def _node_sums(mpi, *values):
+    """(the values summed over the ranks that share this rank's memory, the node's room
+    (node_headroom), those ranks' count)."""
+    node = mpi.Split_type(MPI.COMM_TYPE_SHARED)
+    sums = [node.allreduce(v) for v in values]
+    room = node.bcast(node_headroom() if node.rank == 0 else None)
+    count = node.size
+    node.Free()
+    return sums, room, count
+
+
 def peak():
     """This process's largest resident size so far, bytes (getrusage)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0          # (KiB)
@@ -146,8 +157,9 @@ def check_next(comm, runs, ndofs):
     ...] of the runs so far (each larger than the one before: `peak`). The need: the last
     run's measured bytes per dof over the floor, times its growth from the run before
     (1 to GROWTH_MAX: a graded run's line smoothers hold longer lines as its cells thin;
-    measured 1.13 from Nd 16 to 32 of a graded two-body run), for ndofs; the model of `check` sees neither the lines nor a pair's mortar before the
-    mesh (a graded two-body run at 836,550 dofs: 2.8 GiB, the model 1.4). The room: the
+    measured 1.13 from Nd 16 to 32 of a graded two-body run), for ndofs; the model of
+    `check` sees neither the lines nor a pair's mortar before the mesh (a graded two-body
+    run at 836,550 dofs: 2.8 GiB, the model 1.4). The room: the
     node's (MemAvailable, the cgroup's) and each rank's (ulimit), with the memory the ranks
     hold now counted in (their run is freed before the next one)."""
     mpi = comm.tompi4py()
@@ -156,10 +168,7 @@ def check_next(comm, runs, ndofs):
     growth = min(max(1.0, per[-1] / per[0] if per[0] > 0 else 1.0), GROWTH_MAX)
     need = floor + per[-1] * growth * ndofs
     held = _status("VmRSS")
-    node = mpi.Split_type(MPI.COMM_TYPE_SHARED)
-    node_need, node_held = node.allreduce(need), node.allreduce(held)
-    room_node = node.bcast(node_headroom() if node.rank == 0 else None)
-    node.Free()
+    (node_need, node_held), room_node, _ = _node_sums(mpi, need, held)
     room_proc = process_headroom()
     short = []
     if room_node is not None and node_need > room_node + node_held:
@@ -189,12 +198,7 @@ def check(comm, ndofs, element, mode, lines=0.0):
     need = peak_per_rank(ndofs, element, mode, n) + lines
     rss = _status("VmRSS")
     more = max(need - rss, 0.0)                  # what this rank has yet to allocate
-    node = mpi.Split_type(MPI.COMM_TYPE_SHARED)
-    per_node = node.size
-    node_more = node.allreduce(more)
-    room_node = node_headroom() if node.rank == 0 else None
-    room_node = node.bcast(room_node)
-    node.Free()
+    (node_more,), room_node, per_node = _node_sums(mpi, more)
     room_proc = process_headroom()
     short = []                                   # (kind, need, room) of this rank
     if room_proc is not None and more > room_proc:
