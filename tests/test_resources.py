@@ -184,7 +184,8 @@ def test_check_next_scales_the_last_run(monkeypatch):
     """-error_target's next run (resources.check_next): the last run's bytes per dof over
     the floor, times their growth from the run before capped at GROWTH_MAX (a first run
     barely over the floor would otherwise multiply the need by 1e7), for the next run's
-    dofs; refused where that is more than the node's room and what the process holds."""
+    dofs, with NEXT_MARGIN; refused where that is more than the node's room and what the
+    process holds."""
     import re
     monkeypatch.setattr(resources, "node_headroom", lambda: 0.0)
     monkeypatch.setattr(resources, "process_headroom", lambda: None)
@@ -192,6 +193,7 @@ def test_check_next_scales_the_last_run(monkeypatch):
     runs = [(1000, floor + 1.0), (10**5, floor + 1e9)]        # 1 B a dof, then 10 kB
     words = resources.check_next(PETSc.COMM_WORLD, runs, 10**6)
     need = float(re.search(r"would need about ([0-9.]+) GiB on a node", words).group(1))
-    assert abs(need - (floor + 1e4 * resources.GROWTH_MAX * 1e6) / resources.GiB) < 0.01
+    assert abs(need - resources.NEXT_MARGIN * (floor + 1e4 * resources.GROWTH_MAX * 1e6)
+               / resources.GiB) < 0.01
     monkeypatch.setattr(resources, "node_headroom", lambda: 1e15)
     assert resources.check_next(PETSc.COMM_WORLD, runs, 10**6) is None
