@@ -164,18 +164,19 @@ def test_line_smoothers_too_large_are_refused_once_the_mesh_is(monkeypatch):
     with point-block Jacobi (ratio 0), or the check off, the same plate is built."""
     from contact import options
     from contact.solvers import line_smoother
-    sc = paper_scene(nd=4, mode="newton")               # (levels Nd 2, 4: a multigrid)
+    # levels Nd 2, 4: a multigrid (-mesh_refine 1: on 8 ranks the automatic k would be 0)
+    sc = paper_scene(nd=4, mode="newton")
     sc["mesh"]["upper"][2] = 0.03
     sc["mesh"]["cells_per_nd"] = [5, 2, 1]
     sc["boundary"]["top"]["plane"][1] = 0.03
     monkeypatch.setattr(line_smoother, "BYTES_PER_ENTRY", 1e15)
-    with options.inserted({"multigrid_line_ratio": "4"}):
+    with options.inserted({"multigrid_line_ratio": "4", "mesh_refine": "1"}):
         with pytest.raises(resources.ResourceError, match=r"line smoothers .*"
                            r"-multigrid_line_ratio 0: point-block Jacobi"):
             ContactProblem(sc, PETSc.COMM_WORLD)
         with options.inserted({"memory_check": "0"}):
             assert ContactProblem(sc, PETSc.COMM_WORLD).solvers.multigrid.lines
-    with options.inserted({"multigrid_line_ratio": "0"}):
+    with options.inserted({"multigrid_line_ratio": "0", "mesh_refine": "1"}):
         assert not ContactProblem(sc, PETSc.COMM_WORLD).solvers.multigrid.lines
 
 
