@@ -46,8 +46,8 @@ from petsc4py import PETSc
 from contact import options
 from contact.solvers import multigrid
 from contact.solvers.coulomb_globalisation import (DIVERGED_LINEAR_SOLVE,
-                                                   DIVERGED_STAGNATION, iterate,
-                                                   solve_directly)
+                                                   DIVERGED_STAGNATION, climb_hint,
+                                                   iterate, solve_directly)
 from contact.solvers.coulomb_jacobian import CoulombJacobian
 from contact.solvers.loop import CONVERGED_ROUNDOFF, Loop
 from contact.solvers.newton_ksp import LinearCounts, NewtonKSP
@@ -386,7 +386,7 @@ class CoulombNewton(LinearCounts, Loop):
             self._stall_hint if reason == DIVERGED_STAGNATION else \
             (f"relative residual {self.residual:.1e} at its round-off floor "
              f"{self.floor:.1e} (eps ||A||_inf ||x|| / ||r(0)||), above -newton_rtol "
-             f"{self._rtol:g}") if reason == CONVERGED_ROUNDOFF else None
+             f"{self._rtol:g}") if reason == CONVERGED_ROUNDOFF else climb_hint(self, reason)
         self.finish(it, reason, hint)
         return x
 

@@ -22,7 +22,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contact.solvers.loop import CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO
+from contact.solvers.loop import (CONVERGED, CONVERGED_ROUNDOFF, CONVERGED_ZERO,
+                                 DIVERGED_MAX_IT)
 from contact.solvers.newton_ksp import halving
 
 DIVERGED_LINEAR_SOLVE = "DIVERGED_LINEAR_SOLVE"
@@ -80,6 +81,7 @@ def iterate(nt, x):
     friction continuation (`_friction_stages`), where less friction can hold the body,
     then load continuation (`_load_stages`) along the load path, where there is one.
     Returns (iterations over all stages, reason)."""
+    nt.friction_solved = None        # the largest F x factor < 1 a stage solved on the way
     x0 = x.duplicate()
     x0.set(0.0)
     scale, _ = nt._state(x0, nt.r)               # ||r(0)||: the scale of the test
@@ -109,6 +111,18 @@ def continuation_text(nt, can_friction):
     return f", also with friction continuation down to F x {min(nt.frictions):.3g}"
 
 
+def climb_hint(nt, reason):
+    """After DIVERGED_MAX_IT in a friction continuation: the largest friction it solved on
+    the way (nt.friction_solved, a factor of F), which a user may run instead or climb
+    from; else None."""
+    if reason != DIVERGED_MAX_IT or not nt.friction_solved:
+        return None
+    F = nt.comm.tompi4py().allreduce(float(np.max(nt.F, initial=0.0)), op=MPI.MAX)
+    return (f"the friction continuation had solved F x {nt.friction_solved:.3g} "
+            f"(max F {F * nt.friction_solved:.4g} of {F:.4g}) and was climbing to F: "
+            f"{nt.hint}")
+
+
 def friction_stages(nt, x, scale, it, can_continue):
     """Newton from x at F, with friction continuation when a stage stalls (can_continue;
     not for a body held by friction alone, whose statics the smaller friction breaks):
@@ -135,6 +149,7 @@ def friction_stages(nt, x, scale, it, can_continue):
                 base = factors.pop()
                 if not factors:
                     return it, reason
+                nt.friction_solved = max(nt.friction_solved or 0.0, base)
                 nt._note(it, f"continuation: friction F x {factors[-1]:.3g} from here")
             elif reason == DIVERGED_STAGNATION and len(factors) == 1 and \
                     nt._stage_best <= ROUNDOFF_FACTOR * nt._stage_floor:

@@ -15,6 +15,7 @@ globalisation, the linear solves' options, and A after a solve.
   the next try starts halfway (F x sqrt(0.3)) instead of repeating the climb that stalled
   (F = 100 at Nd = 16 cycled that way to DIVERGED_MAX_IT); the answer is that of the
   default stall test (another path), and its residuals are those of a solution;
+* a climb in friction cut by -newton_max_it names the largest friction it solved;
 * step counts on reference scenes: a linearly converging iteration (a wrong Jacobian) breaks
   them; the last step's linear solve reaches below the final tolerance (no step more);
 * the glued first step holds the active nodes (x_t = 0 after it);
@@ -414,6 +415,21 @@ def test_large_friction_climbs_from_a_smaller_one():
         ref = solve(_beam(6, 1000.0))
     assert ref.converged and ref.inner.iterations > 2 * pr.inner.iterations
     _same_answer(pr, ref)
+
+
+def test_a_climb_cut_by_max_it_names_the_friction_it_solved():
+    """The beam at F = 1000, Nd 3 (one level): its first stage solves F = 3
+    (-newton_friction_start, 5 steps measured) and the climb to F is cut by -newton_max_it
+    6: the error names F x 0.003 (max F 3 of 1000), the largest friction solved on the way;
+    cut before that stage's end (-newton_max_it 4), it names none."""
+    for max_it, named in (("6", True), ("4", False)):
+        with options.inserted({"newton_max_it": max_it}):
+            with pytest.raises(ConvergenceError, match="DIVERGED_MAX_IT") as e:
+                solve(_beam(3, 1000.0))
+        msg = str(e.value)
+        del e                # (its traceback holds the problem's PETSc objects)
+        assert ("had solved F x 0.003 (max F 3 of 1000) and was climbing to F" in
+                msg) == named, msg
 
 
 @skip_in_parallel
