@@ -22,7 +22,8 @@ Groups (--only GROUP runs one; the others are then reported from the cache only)
   held      friction-held blocks: Nd 2-32 x 1-16 increments x shear 50-95 % of F p, a block
             on a gap, a tall block near and past its tipping limit
   rubber    nu from 0.49 to 0.4999999, q2p1 and bbar, the beam and Hertz
-  fbig      F from 0.3 to 1e6: the beam at Nd 4-32, the friction-held block, Hertz
+  fbig      F from 0.3 to 1e6: the beam at Nd 4-32 (q2 at N 4-12), the friction-held block,
+            Hertz
   hertznu   Hertz, nu from 0.3 to 0.4999999 x q1, q2, q2p1, bbar at nd 2 and 3
   plates    plates 3 x 1 x 0.03 and 0.1, cells of aspect 5-20, q1 and q2; rubber plates
   scenefiles  malformed scene files (billion laughs, deep nesting, ...): refused in one line
@@ -350,7 +351,8 @@ F_BIG = ("0.3", "10", "100", "1000", "1e4", "1e6")
 def cases_fbig():
     """The default solver from F = 0.3 to 1e6 (target: converged, Newton steps at most twice
     F = 0.3's on the same mesh): the paper's beam at Nd = 4, 8, 12, 16 (20 at F = 0.3, 100
-    and 300, 32 at F = 0.3 and 1000), the friction-held block (block_shear.yaml, Nd = 8) and Hertz with friction
+    and 300, 32 at F = 0.3 and 1000), with q2 at N = 4, 8 and 12 (make run's mesh: F = 0.3,
+    100, 1000), the friction-held block (block_shear.yaml, Nd = 8) and Hertz with friction
     (hertz.yaml, its own mesh)."""
     blk, hz = (["-scene", os.path.join(SCENES, f)] for f in ("block_shear.yaml",
                                                              "hertz.yaml"))
@@ -361,6 +363,11 @@ def cases_fbig():
                  nd(20) + ["-friction", f] + NEWTON) for f in ("0.3", "100", "300")]
     out += [Case(f"fbig-beam-nd32-F{f}", f"beam, F = {f}, Nd = 32",
                  nd(32) + ["-friction", f] + NEWTON) for f in ("0.3", "1000")]
+    out += [Case(f"fbig-beam-q2-n{n}-F{f}", f"beam, q2, F = {f}, N = {n}",
+                 nd(n) + ["-element", "q2", "-friction", f] + NEWTON)
+            for n, fs in ((4, ("0.3", "10", "100", "1e6")), (8, F_BIG[:4]),
+                          (12, ("0.3", "100", "1000")))     # (make run's: q2, N = 12)
+            for f in fs]
     out += [Case(f"fbig-block-F{f}", f"friction-held block, F = {f}, Nd = 8",
                  blk + nd(8) + ["-friction", f] + NEWTON)
             for f in ("0.5",) + F_BIG[1:]]               # (at F < 0.4 the block slides)
@@ -773,7 +780,8 @@ GROUPS = {
                cases_rubber),
     "fbig": ("Friction up to 1e6 (issue 45, target 1)",
              "The default solver from F = 0.3 to 1e6: the paper's beam at Nd = 4-16 (32 at F "
-             "= 0.3 and 1000), the friction-held block at Nd = 8, Hertz with friction.",
+             "= 0.3 and 1000; q2 at N = 4, 8, 12), the friction-held block at Nd = 8, Hertz "
+             "with friction.",
              cases_fbig),
     "hertznu": ("Hertz: nu x element (issue 45, targets 3 and 5)",
                 "Hertz (hertz.yaml) at nd = 2 and 3, nu = 0.3, 0.49, 0.4999, 0.4999999, "
