@@ -93,7 +93,9 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
     `target`. A gmsh or file mesh: the file refined K, K + 1, ... times (-mesh_refine K,
     at least 2: three levels to estimate from; every level solved), graded where it is a
     box's lattice (adapt.py). Box bodies: Nd doubled, each body graded on its own cells
-    (by the energy's indicator: the force's and max |u|'s duals are one body's). Returns
+    (by the energy's indicator: the force's and max |u|'s duals are one body's); with a
+    gmsh body among them, the scene refined K, K + 1, ... times as a gmsh mesh, the box
+    bodies graded, the gmsh bodies uniformly (no box to grade). Returns
     (last problem, its summary with `error_target`, the reason it stopped short or
     None)."""
     quantity, refine = options.get("error_quantity"), options.get("error_refine")
@@ -104,23 +106,22 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         raise ValueError(f"-error_refine must be graded or uniform, got {refine!r}")
     kind = sc["mesh"].get("type", "box")
     bodies = sc["mesh"].get("bodies", {}) if kind == "bodies" else {}
-    if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file", "bodies") or any(
-            "mesh" in b for b in bodies.values()):
-        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh or box "
-                         f"bodies (Nd or -mesh_refine grows), got {target:g} and a "
-                         + ("gmsh body" if kind == "bodies" else f"{kind} mesh"))
+    read = any("mesh" in b for b in bodies.values())        # a gmsh body: -mesh_refine grows
+    if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file", "bodies"):
+        raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh or "
+                         f"bodies (Nd or -mesh_refine grows), got {target:g} and a {kind} mesh")
     key, limit = TARGET_KEYS[quantity], options.get("error_max_dofs")
     def free(m):                        # the axes a box (or a body) does not grade itself
         g = m.get("grading")
         return [a for a in "xyz" if not (isinstance(g, dict) and a in g)]
     grade = auto
     if not auto and refine == "graded":
-        grade = [(n, a) for n, b in bodies.items() for a in free(b)] if bodies else \
-            free(sc["mesh"])
+        grade = [(n, a) for n, b in bodies.items() if "mesh" not in b for a in free(b)] \
+            if bodies else free(sc["mesh"])
     # a graded pair's goal: the energy's indicator (goal.py's duals are one body's)
     goal = adapt.goal() if grade and not bodies else None
     history, failure, info, peaks = [], None, None, []
-    k = max(options.get("mesh_refine"), 2) if kind in ("gmsh", "file") else None
+    k = max(options.get("mesh_refine"), 2) if kind in ("gmsh", "file") or read else None
     c2f = PETSc.Options().hasName("c2f_levels")
 
     def levels():

@@ -90,9 +90,9 @@ REGISTRY = [
            "the contact force and the energy from the run's own coarse-to-fine levels "
            "(Richardson; three levels or more; their Newton iterations then go to "
            "-newton_rtol 1e-10)", "BOOL"),
-    Option("error_target", 0.0, float, "refine (boxes, box bodies: Nd doubled; files: "
-           "-mesh_refine + 1; graded by the last run's indicator: -error_refine) until the "
-           "estimated error of -error_quantity is <= TOL, printing error against time; stops "
+    Option("error_target", 0.0, float, "refine (boxes, box bodies: Nd doubled; files, gmsh "
+           "bodies: -mesh_refine + 1; graded by the last run's indicator: -error_refine) until "
+           "the estimated error of -error_quantity is <= TOL, printing error against time; stops "
            "at -error_max_dofs, a next run the memory cannot hold, or levels not asymptotic "
            "(exit status 1, the last run's results written); 0: off", "TOL"),
     Option("error_quantity", "energy", str, "the quantity -error_target bounds and a grading "
