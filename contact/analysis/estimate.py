@@ -174,12 +174,13 @@ def indicator_summary(problem):
 
 
 def quantities(problem):
-    """QUANTITIES of a solved problem (the contact force from its contact state)."""
+    """QUANTITIES of a solved problem (the contact force from its contact state, its normal
+    part along the normals summary.json's contact_result takes: a curved pair's per node)."""
     comm = problem.comm.tompi4py()
     out = {"max_displacement": res.max_displacement(comm, problem.displacement()),
            "energy": res.energy(problem), "normal_force": None, "tangential_force": None}
     if problem.cs is not None and problem.cs.size:
-        r = stress.resultants(comm, stress.contact_state(problem), problem.normal)
+        r = stress.resultants(comm, stress.contact_state(problem), stress.normals(problem))
         out["normal_force"], out["tangential_force"] = r["normal"], r["tangential"]
     return out
 

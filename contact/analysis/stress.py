@@ -263,6 +263,13 @@ def resultants(comm, state, normal):
                      "slip": float(areas[2]), "separated": float(areas[0])}}
 
 
+def normals(problem):
+    """The normal the contact force's normal part is taken along: the problem's one, or
+    each contact node's where the contact basis turns from node to node (a curved pair)."""
+    cs = problem.cs
+    return problem.normal if cs is None or cs.bases is None else _normals(cs)
+
+
 def _normals(cs, on=slice(None)):
     """Per owned contact node (`on` of them), its normal into the body: the contact
     space's direction 2 times cs.sign (the slave body's side of a pair)."""
@@ -325,9 +332,7 @@ def summary(problem):
     st = final(problem)
     body = st["body"]
     value, where = peak(comm, body["cell_von_mises"], body["centroid"])
-    cs = problem.cs
-    normal = problem.normal if cs is None or cs.bases is None else _normals(cs)
-    out = {"contact_result": (resultants(comm, st["contact"], normal)
+    out = {"contact_result": (resultants(comm, st["contact"], normals(problem))
                               if st["contact"] is not None else None),
            "von_mises_max": {"value": value if np.isfinite(value) else None,
                              "location": where,

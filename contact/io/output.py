@@ -166,7 +166,7 @@ def increment_recorder():
         increments.append({
             "t": t, "contact": st, "factors": list(factors),
             "x": v.copy() if keep_body else None,
-            "resultant": stress.resultants(sol.comm.tompi4py(), st, sol.normal),
+            "resultant": stress.resultants(sol.comm.tompi4py(), st, stress.normals(sol)),
             "pairs": stress.by_pair(sol.comm.tompi4py(), sol.disc, st)})
     return record, increments
 
