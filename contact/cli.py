@@ -203,6 +203,24 @@ def _out_of_memory(e):
                                            "PetscMalloc" in str(e))
 
 
+#: a PETSc error's objects (its traceback's frames hold them), kept past PetscFinalize: after
+#: an error inside a solve their state is not one PETSc can destroy (a multigrid level's
+#: work vectors mid-cycle: PetscGarbageCleanup crashed in KSPReset at exit)
+_KEPT = []
+
+
+def _petsc_error(e):
+    """One line of a PETSc error: the innermost routine of its stack and PETSc's own
+    message lines after it (its links left out)."""
+    lines = [re.sub(r"^\[\d+\]\s*", "", ln) for ln in str(e).splitlines()[1:]]
+    calls = [i for i, ln in enumerate(lines) if re.match(r"\w+\(\) at ", ln)]
+    where = lines[calls[-1]].split("(")[0] if calls else "PETSc"
+    said = [ln for ln in lines[calls[-1] + 1 if calls else 0:]
+            if ln and not ln.startswith("See ")]
+    return (f"PETSc error {getattr(e, 'ierr', '?')} in {where}(): " + "; ".join(said) +
+            " (-debug: the traceback)")
+
+
 def _interrupt(signum, frame):
     raise KeyboardInterrupt(signal.Signals(signum).name)
 
@@ -225,8 +243,13 @@ def main(argv=None):
         _error(comm, str(e))          # leave together: mpirun kills the rest at the first exit
         return 1
     except (MemoryError, PETSc.Error) as e:
-        if debug or not (isinstance(e, MemoryError) or _out_of_memory(e)):
+        if debug:
             raise
+        if not (isinstance(e, MemoryError) or _out_of_memory(e)):
+            _error(comm, _petsc_error(e))   # (an option this matrix or PC cannot take, ...)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(1)
         first = re.search(r"\] (\w+)\(", str(e)) if isinstance(e, PETSc.Error) else None
         where = first.group(1) if first else "Python"
         _error(comm, f"out of memory (an allocation failed in {where}): the run needs more "
