@@ -46,6 +46,7 @@ from contact.analysis import estimate, goal as goals
 from contact.fem import QUADRATIC
 from contact.fem.discretisation import body_elements, element_of
 from contact.mesh import bodies, grading
+from contact.mesh.bodies import read as read_body
 from contact.problem import ContactProblem
 
 
@@ -67,7 +68,7 @@ def axes(sc):
         for b in bodies.values():
             b.pop("grading", None)
     if kind == "bodies":                 # (a gmsh body, mesh: {...}, has no box to grade)
-        auto = [(name, a) for name, b in bodies.items() if "mesh" not in b for a in (
+        auto = [(name, a) for name, b in bodies.items() if not read_body(b) for a in (
             "xyz" if how == "auto" else scene_grading.auto_axes(b))]
         if how == "auto" and not auto:
             raise ValueError("mesh.grading auto needs a box mesh or box bodies, not only "

@@ -14,6 +14,7 @@ from contact.io import output, report
 from contact.fem.discretisation import element_of
 from contact.solvers.loop import ConvergenceError, ResidualCheckError
 from contact.mesh import MeshError
+from contact.mesh.bodies import read as read_body
 from contact.problem import ContactProblem
 
 
@@ -106,7 +107,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         raise ValueError(f"-error_refine must be graded or uniform, got {refine!r}")
     kind = sc["mesh"].get("type", "box")
     bodies = sc["mesh"].get("bodies", {}) if kind == "bodies" else {}
-    read = any("mesh" in b for b in bodies.values())        # a gmsh body: -mesh_refine grows
+    read = any(map(read_body, bodies.values()))         # a gmsh body: -mesh_refine grows
     if not (0.0 < target < 1.0) or kind not in ("box", "gmsh", "file", "bodies"):
         raise ValueError(f"-error_target needs 0 < TOL < 1 and a box, gmsh or file mesh or "
                          f"bodies (Nd or -mesh_refine grows), got {target:g} and a {kind} mesh")
@@ -116,7 +117,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         return [a for a in "xyz" if not (isinstance(g, dict) and a in g)]
     grade = auto
     if not auto and refine == "graded":
-        grade = [(n, a) for n, b in bodies.items() if "mesh" not in b for a in free(b)] \
+        grade = [(n, a) for n, b in bodies.items() if not read_body(b) for a in free(b)] \
             if bodies else free(sc["mesh"])
     # a graded pair's goal: the energy's indicator (goal.py's duals are one body's)
     goal = adapt.goal() if grade and not bodies else None
@@ -203,12 +204,6 @@ def _out_of_memory(e):
                                            "PetscMalloc" in str(e))
 
 
-#: a PETSc error's objects (its traceback's frames hold them), kept past PetscFinalize: after
-#: an error inside a solve their state is not one PETSc can destroy (a multigrid level's
-#: work vectors mid-cycle: PetscGarbageCleanup crashed in KSPReset at exit)
-_KEPT = []
-
-
 def _petsc_error(e):
     """One line of a PETSc error: the innermost routine of its stack and PETSc's own
     message lines after it (its links left out)."""
@@ -247,6 +242,8 @@ def main(argv=None):
             raise
         if not (isinstance(e, MemoryError) or _out_of_memory(e)):
             _error(comm, _petsc_error(e))   # (an option this matrix or PC cannot take, ...)
+            # at once: after an error inside a solve PETSc cannot destroy its objects (a
+            # multigrid cycle's half-used vectors: PetscGarbageCleanup crashed at exit)
             sys.stdout.flush()
             sys.stderr.flush()
             os._exit(1)

@@ -26,6 +26,7 @@ from contact.analysis import estimate, goal as goals
 from contact import fem, options, resources
 from contact.mesh import transfer
 from contact.fem.discretisation import Discretisation, element_of
+from contact.mesh.bodies import read as read_body
 from contact.mesh.hierarchy import MeshHierarchy
 
 #: the discretisation's fields, read through the problem (tests, output, transfer)
@@ -156,7 +157,7 @@ class ContactProblem:
         of 2)."""
         h = self.hierarchy
         files = not (h.kind == "box" or h.kind == "bodies" and not any(
-            "mesh" in b for b in self.scene["mesh"]["bodies"].values()))
+            map(read_body, self.scene["mesh"]["bodies"].values())))
         return self.level - (1 if h.quadratic else 0), files
 
     def _coarse_start(self, prolong=True):

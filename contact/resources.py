@@ -163,10 +163,9 @@ def check_next(comm, runs, ndofs):
     (1 to GROWTH_MAX: a graded run's line smoothers hold longer lines as its cells thin;
     measured 1.13 from Nd 16 to 32 of a graded two-body run), for ndofs; the model of
     `check` sees neither the lines nor a pair's mortar before the mesh (a graded two-body
-    run at 836,550 dofs: 2.8 GiB, the model 1.4); with a margin of NEXT_MARGIN. The
-    room: the
-    node's (MemAvailable, the cgroup's) and each rank's (ulimit), with the memory the ranks
-    hold now counted in (their run is freed before the next one)."""
+    run at 836,550 dofs: 2.8 GiB, the model 1.4); with a margin of NEXT_MARGIN. The room:
+    the node's (MemAvailable, the cgroup's) and each rank's (ulimit), with the memory the
+    ranks hold now counted in (their run is freed before the next one)."""
     mpi = comm.tompi4py()
     floor = MODEL[("q1", "newton")][0] * MiB
     per = [max(b - floor, 0.0) / n for n, b in runs[-2:]]
