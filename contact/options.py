@@ -213,9 +213,9 @@ REGISTRY = [
     Option("newton_linesearch_min", 1.0 / 64, float, "shortest step of the backtracking "
            "line search on the residual norm (taken if nothing longer decreases it)", "T"),
     Option("newton_watchdog", 6, int, "full Newton steps taken also when the residual "
-           "rises, up to N in a row; then back to the last point of decrease and a "
-           "backtracking line search from there (0: a monotone line search every step)",
-           "N"),
+           "rises (where they change the contact sets), up to N in a row; then back to "
+           "the last point of decrease and a backtracking line search from there (0: a "
+           "monotone line search every step)", "N"),
     Option("newton_hold_reversals", True, bool, "a slip node whose slip direction "
            "reversed since the last Newton step is held (stick) in the next step's "
            "Jacobian: the iteration otherwise cycles between opposite slip directions "
