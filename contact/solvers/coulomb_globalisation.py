@@ -310,24 +310,33 @@ def solve_directly(nt, K, rhs):
     return ok
 
 
+def sets_code(st):
+    """A state's sets per node: 0 open, 1 stick, 2 slip (within a stage a node's friction
+    is fixed: active and stick decide slip)."""
+    return np.where(st["active"], np.where(st["stick"], 1, 2), 0)
+
+
+def _same_everywhere(nt, a, b):
+    return nt.comm.tompi4py().allreduce(bool(np.array_equal(a, b)), op=MPI.LAND)
+
+
 def same_sets(nt, a, b):
     """Whether the states a and b have the same active, stick and slip sets (collective)."""
-    same = all(np.array_equal(a[k], b[k]) for k in ("active", "stick", "slip"))
-    return nt.comm.tompi4py().allreduce(bool(same), op=MPI.LAND)
+    return _same_everywhere(nt, sets_code(a), sets_code(b))
 
 
 def two_cycle(nt, last, nr, st):
     """Whether the step that gave ||r|| = nr and the sets of st closes an exact 2-cycle:
     the residual norm and the active, stick and slip sets those of two steps before. last:
     the stage's states of the last steps (updated here). Collective."""
-    code = np.where(st["active"], np.where(st["stick"], 1, 2), 0)
+    code = sets_code(st)
     last.append((nr, code))
     if len(last) < 3:
         return False
     nr2, code2 = last.pop(0)
     if abs(nr2 - nr) > CYCLE_RTOL * nr:             # (nr: the same on every rank)
         return False
-    return nt.comm.tompi4py().allreduce(bool(np.array_equal(code2, code)), op=MPI.LAND)
+    return _same_everywhere(nt, code2, code)
 
 
 def stage(nt, x, scale, it):
