@@ -93,8 +93,8 @@ REGISTRY = [
     Option("error_target", 0.0, float, "refine (boxes, box bodies: Nd doubled; files, gmsh "
            "bodies: -mesh_refine + 1; graded by the last run's indicator: -error_refine) until "
            "the estimated error of -error_quantity is <= TOL, printing error against time; stops "
-           "at -error_max_dofs, a next run the memory cannot hold, or levels not asymptotic "
-           "(exit status 1, the last run's results written); 0: off", "TOL"),
+           "at -error_max_dofs, a next run the memory cannot hold, or levels not asymptotic in "
+           "two runs in a row (exit status 1, the last run's results written); 0: off", "TOL"),
     Option("error_quantity", "energy", str, "the quantity -error_target bounds and a grading "
            "aims at (force, max_u: the indicator weighed by its dual, analysis/goal.py)",
            "energy|force|max_u"),

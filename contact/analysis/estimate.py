@@ -50,6 +50,9 @@ ORDERS = {"q1": (0.5, 3.0), "bbar": (0.5, 3.0), "q2": (0.5, 3.5), "q2p1": (0.5, 
 POINT_ORDERS = {"q2": (0.5, 2.5), "q2p1": (0.5, 2.5)}
 #: the coarse levels' -newton_rtol when the estimate is on
 COARSE_RTOL = 1e-10
+#: the words that open a quantity's note where its levels are not in the asymptotic range
+#: (-error_target refines on: cli.py)
+NOT_ASYMPTOTIC = "not in the asymptotic range"
 
 
 def cell_indicator(problem, x0):
@@ -215,7 +218,7 @@ def from_levels(levels, element):
                    "the differences do not shrink" if r is None else
                    f"observed order {r[1]:.2f} outside {lo:g} to {hi:g} for {element}")
             entry.update(error=None, order=None, extrapolated=None,
-                         note=f"not in the asymptotic range: {why} (Nd = "
+                         note=f"{NOT_ASYMPTOTIC}: {why} (Nd = "
                               f"{', '.join(map(str, nds[-3:]))})")
             out[key] = entry
             continue
