@@ -115,8 +115,11 @@ class ContactProblem:
             start = None
             if driver.needs_start(self):
                 start = self._coarse_start()
-            elif self.estimating and driver.load_steps(self.scene) > 1:
-                self._coarse_start(prolong=False)    # the coarser levels' own load paths
+            elif self.estimating and (driver.load_steps(self.scene) > 1 or
+                                      not driver.has_contact(self)):
+                # the coarser levels' own load paths, or their linear solves: for the
+                # estimate's values and indicator alone (no start)
+                self._coarse_start(prolong=False)
             record, increments = output.increment_recorder() \
                 if driver.load_steps(self.scene) > 1 else (None, [])
             self.solution = driver.solve(self, start, record)

@@ -48,8 +48,8 @@ Parts (--part, default all):
           runs/results/bench-setup.md.
 The unit of solver cost is the LSE (linear-solve equivalent): one CG + GAMG solve (PC set-up
 + solve, rtol 1e-8) of the same mesh without contact (the beam with its contact face a
-free surface: runs/scenes/paper_beam_linear.yaml), on the same ranks, in the same bench
-run; table1 and ranks give solve / LSE and set-up / LSE.
+free surface: runs/scenes/paper_beam_linear.yaml; -error_estimate 0: its coarser levels
+unsolved), on the same ranks, in the same bench run; table1 and ranks give solve / LSE and set-up / LSE.
 Each case runs `python -m contact ...` in runs/out/bench/<case> (--out-dir); a case whose
 summary.json exists is reused (--force reruns). Times are wall-clock seconds of the solve
 stage. --smoke: every part at Nd = 2 (floor: 300 iterations, a small bandwidth array),
@@ -88,7 +88,7 @@ HERTZ_BOX = os.path.join(ROOT, "runs", "scenes", "hertz_box.yaml")
 def lse(args, nd, np_=1):
     """Seconds of one linear-solve equivalent at this Nd on np_ ranks (see the docstring)."""
     s = run(args, f"lse-nd{nd}" + (f"-np{np_}" if np_ > 1 else ""), nd,
-            ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8",
+            ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
              "-elastic_pc_type", "gamg"], np_=np_).summary
     assert s["mode"] == "linear", s["mode"]
     return s["time_s"]["solve"]
@@ -277,7 +277,8 @@ def part_scaling(args, lines):
               "|---|---|---|---|---|---|---|---|---|"]
     kb_nd = args.kb_nd
     lse = ("no contact, CG + GAMG (the LSE)", f"lse-nd{kb_nd}-np2",
-           ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8", "-elastic_pc_type", "gamg"])
+           ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
+            "-elastic_pc_type", "gamg"])
     cases = [("default (newton, multigrid)",
               f"newton-nd{kb_nd}-np2", NEWTON),
              ("newton, -mat_type aij (PETSc's Galerkin products)",
@@ -285,7 +286,7 @@ def part_scaling(args, lines):
              ("newton, -newton_pc_type gamg", f"newton-gamg-nd{kb_nd}-np2",
               NEWTON + ["-newton_pc_type", "gamg"]),
              ("no contact, CG + multigrid", f"linear-mg-nd{kb_nd}-np2",
-              ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"]), lse]
+              ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8"]), lse]
     rows, unit = [], None
     for name, case, opts in [lse] + cases[:-1]:        # the LSE first: the unit
         s = run(args, case, kb_nd, opts, np_=2).summary
@@ -310,10 +311,10 @@ def part_quadratic(args, lines):
               "|---|---|---|---|---|---|---|---|---|"]
     for nd in args.q2_nd:
         cases = [("no contact, CG + GAMG (the LSE)", f"q2-lse-nd{nd}-np2",
-                  q2 + ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8",
+                  q2 + ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
                         "-elastic_pc_type", "gamg"]),
                  ("no contact, CG + multigrid", f"q2-linear-mg-nd{nd}-np2",
-                  q2 + ["-scene", LSE_SCENE, "-elastic_ksp_rtol", "1e-8"]),
+                  q2 + ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8"]),
                  ("default (newton, multigrid)", f"q2-newton-nd{nd}-np2", q2 + NEWTON),
                  ("newton, -newton_pc_type gamg", f"q2-newton-gamg-nd{nd}-np2",
                   q2 + NEWTON + ["-newton_pc_type", "gamg"])]

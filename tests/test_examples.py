@@ -109,6 +109,7 @@ def test_bench(tmp_path):
     assert int(rows["newton"][6]) == 0 and int(rows["newton"][4]) >= 1   # no loops: Newton
     # the LSE: a linear solve of the same mesh, timed; solve / LSE is their ratio
     lse = harness.cached(tmp_path / "lse-nd2", ["-nd", 2, "-scene", LSE_SCENE,
+                                                  "-error_estimate", 0,
                                                   "-elastic_ksp_rtol", "1e-8",
                                                   "-elastic_pc_type", "gamg"])
     assert lse.ok and lse.summary["mode"] == "linear" and lse.summary["dofs"] == n_p(2)

@@ -116,14 +116,15 @@ def _summary(problem, time_total):
 
 def header(s):
     inner = s["iterations"].get("inner", "apg")
-    inner = "APG" if inner in ("apg", "none") else inner.upper()
-    return (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {inner + '(1st)':>9} {'Uzawa(mean)':>11} "
+    inner = "KSP its" if inner == "none" else f"{inner.upper()}(1st)"   # none: linear
+    return (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {inner:>9} {'Uzawa(mean)':>11} "
             f"{'FP':>4} {'time, s':>9}")
 
 
 def table_line(s):
     it = s["iterations"]
-    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {it['inner_first']:>9} "
+    first = it["ksp_total"] if it.get("inner") == "none" else it["inner_first"]
+    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {first:>9} "
             f"{it['uzawa_mean']:>11.1f} {it['fixed_point']:>4} {s['time_s']['total']:>9.2f}")
 
 
@@ -150,8 +151,10 @@ def print_summary(comm, s, outdir=None):
     lines = [header(s), table_line(s),
              *([how[s["solver_mode"]]] if s["mode"] != "linear" and
                s["solver_mode"] in how else []),
-             f"mode {s['mode']}, ranks {s['ranks']}, "
-             f"{s['iterations']['inner'].upper()} total {s['iterations']['inner_total']}, "
+             f"mode {s['mode']}, ranks {s['ranks']}, " +
+             (f"{s['iterations']['inner'].upper()} total {s['iterations']['inner_total']}, "
+              if s["iterations"]["inner"] != "none" else
+              f"KSP its {s['iterations']['ksp_total']}, ") +
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "

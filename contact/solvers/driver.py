@@ -171,9 +171,14 @@ def load_steps(scene):
     return int(scene.get("loading", {}).get("steps", 1))
 
 
+def has_contact(pr):
+    """Whether `pr` has contact nodes (else one linear solve: `solve`)."""
+    return pr.cs is not None and pr.cs.size > 0
+
+
 def needs_start(pr):
     """Whether the solve of `pr` takes a start (solve's `start`): a static contact solve."""
-    return pr.cs is not None and pr.cs.size > 0 and load_steps(pr.scene) == 1
+    return has_contact(pr) and load_steps(pr.scene) == 1
 
 
 def solve(pr, start=None, on_increment=None):
@@ -185,7 +190,7 @@ def solve(pr, start=None, on_increment=None):
     output's recorder of the increments), or None."""
     sol = Solution(pr.disc, pr.x)
     steps = load_steps(pr.scene)
-    if pr.cs is None or pr.cs.size == 0:
+    if not has_contact(pr):
         sol.skip("Uzawa and fixed-point loops (no contact node): one KSP solve")
         if steps > 1:
             sol.skip("load steps (linear problem: one solve at the full load)")
