@@ -270,5 +270,9 @@ def main(argv=None):
             raise
         _error(comm, f"interrupted ({e.args[0] if e.args else 'SIGINT'}); no results "
                      "written")
-        return 130
+        # at once, as after a PETSc error: an interrupt inside a solve (the line
+        # smoother's apply) leaves objects that PETSc cannot destroy at exit (SEGV)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
     return 0

@@ -372,6 +372,47 @@ def test_interrupt_leaves_no_output(tmp_path, sig):
     assert not os.listdir(out)                         # nothing, not even a temporary
 
 
+#: a script: the CLI with the line smoother's apply raising the interrupt at its AT-th call
+_INTERRUPT_IN_APPLY = """
+import sys
+import petsc4py
+petsc4py.init(sys.argv)
+from contact.solvers import line_smoother
+apply, calls = line_smoother.LineSmoother.apply, []
+def interrupted(self, *args):
+    calls.append(1)
+    if len(calls) == 30:
+        raise KeyboardInterrupt("SIGTERM")       # what cli._interrupt raises
+    return apply(self, *args)
+line_smoother.LineSmoother.apply = interrupted
+from contact.cli import main
+sys.exit(main())
+"""
+
+
+@skip_in_parallel
+def test_interrupt_inside_the_line_smoother_exits_cleanly(tmp_path):
+    """An interrupt that arrives inside a Python callback of a Krylov solve (the line
+    smoother's apply, a PCPYTHON; the aspect-20 q2 plate of test_line_smoother.py, its
+    30th apply) leaves that solve half-way: resetting its KSP in the Newton loop's
+    clean-up, and PETSc's own clean-up at exit, crashed (SEGV, exit status 59 or 139;
+    found as a SIGTERM from `timeout` during a graded punch_on_plate run). Now the one line
+    and exit status 130, as elsewhere."""
+    script = tmp_path / "interrupted.py"
+    script.write_text(_INTERRUPT_IN_APPLY)
+    cmd = [sys.executable, str(script), "-nd", "1", "-element", "q2",
+           "-scene_mesh_upper_2", "0.03", "-scene_boundary_top_plane_1", "0.03",
+           "-scene_mesh_cells_per_nd_0", "5", "-scene_mesh_cells_per_nd_1", "2",
+           "-scene_mesh_cells_per_nd_2", "1", "-multigrid_line_ratio", "4",
+           "-output_dir", str(tmp_path / "out")]
+    p = subprocess.run(cmd, cwd=ROOT, env=dict(CLI_ENV, PYTHONPATH=ROOT),
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 130, p.stderr[-2000:]
+    assert p.stderr.strip().splitlines() == ["contact: error: interrupted (SIGTERM); no "
+                                             "results written"], p.stderr[-2000:]
+    assert not os.path.isdir(tmp_path / "out") or not os.listdir(tmp_path / "out")
+
+
 @pytest.mark.slow
 @skip_in_parallel
 def test_interrupt_under_mpirun_leaves_no_output(tmp_path):

@@ -371,13 +371,18 @@ class CoulombNewton(LinearCounts, Loop):
         if self.mg is not None:
             self.mg.set_interpolations(self.ksp)        # ksp.reset() drops them
         _EV_ITER.begin()
+        done = False
         try:
             it, reason = iterate(self, x)
+            done = True
         finally:
             self.jac.restore()
-            if self.split is None:        # (a reset fieldsplit would forget its splits)
-                self.ksp.reset()          # the preconditioner's memory (its coarse levels)
-            if self.mg is not None:
+            # the preconditioner's memory (its coarse levels) freed, unless an exception
+            # left a solve half-way through a cycle (an interrupt inside the line smoother's
+            # apply: KSPReset then crashed, SEGV)
+            if done and self.split is None:   # (a reset fieldsplit would forget its splits)
+                self.ksp.reset()
+            if done and self.mg is not None:
                 self.mg.release()
             _EV_ITER.end()
         if reason != CONVERGED_ROUNDOFF:
