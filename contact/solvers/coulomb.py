@@ -75,6 +75,18 @@ HOLD_LIMIT = 2
 PULL_LIMIT = 2
 
 
+def _clean_up(nt, done):
+    """After the Newton loop `nt` (done: it returned): A's own rows back, and the
+    preconditioner's memory (its coarse levels) freed, unless an exception left a solve
+    half-way through a cycle (an interrupt inside the line smoother's apply: KSPReset then
+    crashed, SEGV)."""
+    nt.jac.restore()
+    if done and nt.split is None:       # (a reset fieldsplit would forget its splits)
+        nt.ksp.reset()
+    if done and nt.mg is not None:
+        nt.mg.release()
+
+
 class CoulombNewton(LinearCounts, Loop):
     """Alart-Curnier semismooth Newton on the whole contact problem; options prefix
     ``-newton_``. A, b: the elasticity matrix (clamped rows eliminated, diagonal
@@ -376,14 +388,7 @@ class CoulombNewton(LinearCounts, Loop):
             it, reason = iterate(self, x)
             done = True
         finally:
-            self.jac.restore()
-            # the preconditioner's memory (its coarse levels) freed, unless an exception
-            # left a solve half-way through a cycle (an interrupt inside the line smoother's
-            # apply: KSPReset then crashed, SEGV)
-            if done and self.split is None:   # (a reset fieldsplit would forget its splits)
-                self.ksp.reset()
-            if done and self.mg is not None:
-                self.mg.release()
+            _clean_up(self, done)
             _EV_ITER.end()
         if reason != CONVERGED_ROUNDOFF:
             self.floor = None            # (a continuation's stage may have set it)
