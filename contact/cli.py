@@ -28,7 +28,6 @@ from contact.problem import ContactProblem
 PRE_ASYMPTOTIC_RUNS = 1
 
 
-
 def _error(comm, msg, wait=10.0):
     """Print `msg` once. All ranks normally fail together (rank 0 prints); a rank whose
     error the others did not see (they wait in a collective) prints it and aborts the
