@@ -261,14 +261,6 @@ def solve_contact(pr, sol, b, gap, start=None, g0=None, path=None):
     its LoadPath (the Newton iteration's load continuation; default: the static load's)."""
     sol.solver_mode = options.solver_mode(pr.scene)
     newton = sol.solver_mode == "newton"
-    if not newton and pr.contact_held and gap.min()[1] > 0.0:
-        # (measured, block_gap.yaml: fast ended in its first Newton system, KSP
-        # DIVERGED_INDEFINITE_PC; faithful ran on past 120 s)
-        raise ValueError(f"-solver_mode {sol.solver_mode}: the body is held by the "
-                         f"foundation alone across an open gap (its dirichlet parts leave a "
-                         f"rigid motion free), where the paper's loops start from a singular "
-                         f"stiffness; use -solver_mode newton (the default: its first step "
-                         f"closes the gap)")
     with options.inserted(SOLVER_MODES[sol.solver_mode]):
         loops = NewtonLoops(pr.disc, pr.solvers, b, gap, pr.contact_held,
                             pr.friction_held is not None,
