@@ -82,14 +82,15 @@ def run(args, case, nd, opts, np_=1, force=None, log_view=False, timeout=3600):
 
 
 LSE_SCENE = os.path.join(ROOT, "runs", "scenes", "paper_beam_linear.yaml")
+#: its one linear solve (CG, rtol 1e-8; -error_estimate 0: its coarser levels unsolved)
+LINEAR = ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8"]
 HERTZ_BOX = os.path.join(ROOT, "runs", "scenes", "hertz_box.yaml")
 
 
 def lse(args, nd, np_=1):
     """Seconds of one linear-solve equivalent at this Nd on np_ ranks (see the docstring)."""
     s = run(args, f"lse-nd{nd}" + (f"-np{np_}" if np_ > 1 else ""), nd,
-            ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
-             "-elastic_pc_type", "gamg"], np_=np_).summary
+            LINEAR + ["-elastic_pc_type", "gamg"], np_=np_).summary
     assert s["mode"] == "linear", s["mode"]
     return s["time_s"]["solve"]
 
@@ -277,8 +278,7 @@ def part_scaling(args, lines):
               "|---|---|---|---|---|---|---|---|---|"]
     kb_nd = args.kb_nd
     lse = ("no contact, CG + GAMG (the LSE)", f"lse-nd{kb_nd}-np2",
-           ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
-            "-elastic_pc_type", "gamg"])
+           LINEAR + ["-elastic_pc_type", "gamg"])
     cases = [("default (newton, multigrid)",
               f"newton-nd{kb_nd}-np2", NEWTON),
              ("newton, -mat_type aij (PETSc's Galerkin products)",
@@ -286,7 +286,7 @@ def part_scaling(args, lines):
              ("newton, -newton_pc_type gamg", f"newton-gamg-nd{kb_nd}-np2",
               NEWTON + ["-newton_pc_type", "gamg"]),
              ("no contact, CG + multigrid", f"linear-mg-nd{kb_nd}-np2",
-              ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8"]), lse]
+              LINEAR), lse]
     rows, unit = [], None
     for name, case, opts in [lse] + cases[:-1]:        # the LSE first: the unit
         s = run(args, case, kb_nd, opts, np_=2).summary
@@ -311,10 +311,9 @@ def part_quadratic(args, lines):
               "|---|---|---|---|---|---|---|---|---|"]
     for nd in args.q2_nd:
         cases = [("no contact, CG + GAMG (the LSE)", f"q2-lse-nd{nd}-np2",
-                  q2 + ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8",
-                        "-elastic_pc_type", "gamg"]),
+                  q2 + LINEAR + ["-elastic_pc_type", "gamg"]),
                  ("no contact, CG + multigrid", f"q2-linear-mg-nd{nd}-np2",
-                  q2 + ["-scene", LSE_SCENE, "-error_estimate", "0", "-elastic_ksp_rtol", "1e-8"]),
+                  q2 + LINEAR),
                  ("default (newton, multigrid)", f"q2-newton-nd{nd}-np2", q2 + NEWTON),
                  ("newton, -newton_pc_type gamg", f"q2-newton-gamg-nd{nd}-np2",
                   q2 + NEWTON + ["-newton_pc_type", "gamg"])]

@@ -114,17 +114,24 @@ def _summary(problem, time_total):
     }
 
 
+def _inner(s):
+    """(column label, first count, total in words) of the inner solver's iterations: a
+    linear run's (inner "none") are its KSP iterations."""
+    it = s["iterations"]
+    name = it.get("inner", "apg")
+    if name == "none":
+        return "KSP its", it["ksp_total"], f"KSP its {it['ksp_total']}"
+    return f"{name.upper()}(1st)", it["inner_first"], f"{name.upper()} total {it['inner_total']}"
+
+
 def header(s):
-    inner = s["iterations"].get("inner", "apg")
-    inner = "KSP its" if inner == "none" else f"{inner.upper()}(1st)"   # none: linear
-    return (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {inner:>9} {'Uzawa(mean)':>11} "
+    return (f"{'Nd':>4} {'n_p':>9} {'n_d':>7} {_inner(s)[0]:>9} {'Uzawa(mean)':>11} "
             f"{'FP':>4} {'time, s':>9}")
 
 
 def table_line(s):
     it = s["iterations"]
-    first = it["ksp_total"] if it.get("inner") == "none" else it["inner_first"]
-    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {first:>9} "
+    return (f"{s['nd']:>4} {s['dofs']:>9} {s['contact_nodes']:>7} {_inner(s)[1]:>9} "
             f"{it['uzawa_mean']:>11.1f} {it['fixed_point']:>4} {s['time_s']['total']:>9.2f}")
 
 
@@ -151,10 +158,7 @@ def print_summary(comm, s, outdir=None):
     lines = [header(s), table_line(s),
              *([how[s["solver_mode"]]] if s["mode"] != "linear" and
                s["solver_mode"] in how else []),
-             f"mode {s['mode']}, ranks {s['ranks']}, " +
-             (f"{s['iterations']['inner'].upper()} total {s['iterations']['inner_total']}, "
-              if s["iterations"]["inner"] != "none" else
-              f"KSP its {s['iterations']['ksp_total']}, ") +
+             f"mode {s['mode']}, ranks {s['ranks']}, {_inner(s)[2]}, "
              f"energy J(u) = {s['energy']:.10e}, max |u| = {s['max_displacement']:.6e}",
              f"residuals: penetration {r['penetration']:.2e}, complementarity "
              f"{r['complementarity']:.2e}, coulomb {r['coulomb']:.2e}; converged: "
