@@ -22,7 +22,7 @@ from contact.solvers.coulomb import CoulombNewton
 from contact.fem.discretisation import DEFAULT_RAMP
 from contact.solvers.paper.fixedpoint import FixedPoint
 from contact.solvers.loop import ConvergenceError, ResidualCheckError
-from contact.solvers.paper.ssn import SemismoothNewton
+from contact.solvers.paper.ssn import SPRING, SemismoothNewton
 from contact.solvers.solution import Solution
 from contact.scene import ramp_factor
 from contact.solvers.paper.uzawa import Uzawa
@@ -43,11 +43,11 @@ class Loops:
     """Fixed point (F > 0) over Uzawa over the inner solver (APG or SSN), from the options
     (the registry's defaults, the scene's solver values, the command line)."""
 
-    def __init__(self, disc, b, gap):
+    def __init__(self, disc, b, gap, contact_held=False):
         scene, cs = disc.scene, disc.cs
         kind = options.get("uzawa_inner", scene)
         if kind == "ssn":
-            inner = SemismoothNewton(disc.comm, disc.clamped, disc.diag_scale)
+            inner = SemismoothNewton(disc.comm, disc.clamped, disc.diag_scale, contact_held)
         else:
             inner = APG(disc.comm)
         self.inner = inner.set_from_options(scene)
@@ -265,7 +265,7 @@ def solve_contact(pr, sol, b, gap, start=None, g0=None, path=None):
         loops = NewtonLoops(pr.disc, pr.solvers, b, gap, pr.contact_held,
                             pr.friction_held is not None,
                             path or LoadPath(pr.load_groups)) if newton else \
-            Loops(pr.disc, b, gap)
+            Loops(pr.disc, b, gap, pr.contact_held)
         sol.loops = loops
         cs = pr.cs
         sol.l = cs.vec()
@@ -380,7 +380,7 @@ def normal_pressure(pr, loops, b, gap):
         b_n.axpy(-ci, m)
     ssn = isinstance(loops.inner, SemismoothNewton)
     if ssn:                     # A + P is singular on M (and may be on more, when the
-        loops.inner.regularize(1e-3 * pr.diag_scale)      # active nodes are few)
+        loops.inner.regularize(SPRING * pr.diag_scale)    # active nodes are few)
     l0 = pr.cs.vec()
     pr.x.set(0.0)
     loops.uzawa.set_load(b_n, gap)
@@ -388,8 +388,8 @@ def normal_pressure(pr, loops, b, gap):
         loops.uzawa.solve(pr.x, l0, None)
     finally:
         loops.uzawa.set_load(b, gap)
-        if ssn:                                           # next solve: a new K, PC
-            loops.inner.regularize(0.0)
+        if ssn:                              # next solve: a new K, PC (and the spring
+            loops.inner.regularize(0.0)      # of a body the foundation alone holds)
         for vec in M + [b_n]:
             vec.destroy()
     pr.x.set(0.0)

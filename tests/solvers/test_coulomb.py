@@ -149,6 +149,25 @@ def test_friction_held_block_shear():
     assert du < TOL and dp < TOL, (du, dp)
 
 
+@pytest.mark.parametrize("name, nd", [("block_gap", 2), ("stack_three_blocks", 1)])
+def test_fast_mode_holds_a_body_the_foundation_alone_holds(name, nd):
+    """A body no clamped part holds: across an open gap (block_gap.yaml, Nd = 2) or lying
+    on others (stack_three_blocks.yaml's gasket, its own mesh). The fast mode's first SSN
+    system was singular there (KSP DIVERGED_INDEFINITE_MAT, DIVERGED_DTOL); with the
+    spring of ssn.SPRING it converges to the default mode's answer."""
+    def scene():
+        sc = scenes.load(os.path.join(ROOT, "runs", "scenes", f"{name}.yaml"))
+        sc.setdefault("solver", {})
+        sc["mesh"] = {**sc.get("mesh", {}), "nd": nd}
+        return sc
+    pr = solve(_newton(scene()))
+    assert pr.contact_held and pr.converged
+    ref = _fast_reference(scene())
+    assert ref.solver_mode == "fast" and ref.converged
+    du, dp = _diff(pr, ref)
+    assert du < TOL and dp < TOL, (du, dp)
+
+
 # ---------------------------------------------------------------- 4. the default mode
 def test_default_mode_is_newton_and_faithful_is_the_loops():
     """No mode in the scene: the new solver; mode faithful: the paper's three loops, and the
