@@ -306,9 +306,12 @@ def test_validate(tmp_path):
         assert os.path.getsize(tmp_path / "validation" / png) > 0
 
 
-def test_validate_block(tmp_path):
-    script("validate_block.py", "--smoke", "--out", tmp_path / "validation_block.md")
+@pytest.mark.parametrize("mode", [None, "fast"])
+def test_validate_block(tmp_path, mode):
+    script("validate_block.py", "--smoke", "--out", tmp_path / "validation_block.md",
+           *(("--mode", mode) if mode else ()))
     md = read(tmp_path / "validation_block.md")
+    assert f"`-solver_mode {mode or 'newton'}`" in md
     held, = table_rows(md, "0.5")                             # q = F p / 2: statics hold
     assert held[1] == "holds" and held[8] == "holds"
     for stick, cone in ((held[2], held[4]), (held[9], held[11])):
@@ -316,7 +319,8 @@ def test_validate_block(tmp_path):
     beyond, = table_rows(md, "1.2")                           # q > F p: no equilibrium
     assert beyond[1] == beyond[8] == "refused (statics check)"
     assert md.count("exceeds the friction limit") == 2
-    assert os.path.getsize(tmp_path / "validation" / "block_shear.png") > 0
+    png = "block_shear" + (f"-{mode}" if mode else "") + ".png"
+    assert os.path.getsize(tmp_path / "validation" / png) > 0
 
 
 def test_validate_incline(tmp_path):

@@ -388,8 +388,8 @@ def normal_pressure(pr, loops, b, gap):
         loops.uzawa.solve(pr.x, l0, None)
     finally:
         loops.uzawa.set_load(b, gap)
-        if ssn:                              # next solve: a new K, PC (and the spring
-            loops.inner.regularize(0.0)      # of a body the foundation alone holds)
+        if ssn:                                           # next solve: a new K, PC
+            loops.inner.regularize(0.0)
         for vec in M + [b_n]:
             vec.destroy()
     pr.x.set(0.0)
