@@ -153,8 +153,8 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         _skipped_formats(problem, formats)
         s = report.summary(problem, time.perf_counter() - t0)
         e = (s["error_estimate"] or {}).get(key)
-        rel = e["error"] / abs(e["extrapolated"]) if e and e["error"] is not None and \
-            e["extrapolated"] else None
+        ref = e and (e["value"] if e["extrapolated"] is None else e["extrapolated"])
+        rel = e["error"] / abs(ref) if e and e["error"] is not None and ref else None
         history.append({"nd": problem.nd, "dofs": s["dofs"], "time_s": s["time_s"]["total"],
                         "value": e["value"] if e else None, "relative_error": rel})
         PETSc.Sys.Print(f"error target: Nd = {problem.nd:4d}, {s['dofs']:>10,} dofs, "

@@ -9,7 +9,11 @@ and the extrapolated value q* is printed beside it; with four levels or more, th
 extrapolation from the next triple gives q*'s own error estimate (their difference).
 Where the levels are not in the asymptotic range (the differences change sign or do not
 shrink, or the observed order lies outside ORDERS for the element) the estimate says so in
-words instead of a number. The coarse levels are solved to COARSE_RTOL (-newton_rtol of
+words instead of a number; except where they oscillate and converge (the differences change
+sign, the last the smaller: Stern et al., "Comprehensive approach to verification and
+validation of CFD simulations", J. Fluids Eng. 123, 2001, 793-802, "oscillatory
+convergence"), where the error is bounded by half the range of the last three levels
+(their U_G = (S_U - S_L) / 2): conservative, with no order and no extrapolation. The coarse levels are solved to COARSE_RTOL (-newton_rtol of
 the coarse levels when the estimate is on): the Newton iteration converges quadratically
 there, so its error is orders below the level differences used (runs/results/estimate.md
 records both).
@@ -53,6 +57,8 @@ COARSE_RTOL = 1e-10
 #: the words that open a quantity's note where its levels are not in the asymptotic range
 #: (-error_target refines on: cli.py)
 NOT_ASYMPTOTIC = "not in the asymptotic range"
+#: ... and where they oscillate and converge (their error: half the levels' range)
+OSCILLATING = "oscillating"
 
 
 def cell_indicator(problem, x0):
@@ -212,8 +218,16 @@ def from_levels(levels, element):
             out[key] = entry
             continue
         r = convergence.richardson([1.0 / n for n in nds[-3:]], vals[-3:])
+        d1, d2 = vals[-3] - vals[-2], vals[-2] - vals[-1]
+        if d1 * d2 < 0 and abs(d2) < abs(d1):          # oscillatory convergence
+            entry.update(error=spread / 2, order=None, extrapolated=None,
+                         extrapolated_error=None,
+                         note=f"{OSCILLATING}: the differences between levels change sign "
+                              f"and shrink (Nd = {', '.join(map(str, nds[-3:]))}); the error "
+                              "bounded by half their range (Stern et al. 2001)")
+            out[key] = entry
+            continue
         if r is None or not lo <= r[1] <= hi:
-            d1, d2 = vals[-3] - vals[-2], vals[-2] - vals[-1]
             why = ("the differences between levels change sign" if d1 * d2 <= 0 else
                    "the differences do not shrink" if r is None else
                    f"observed order {r[1]:.2f} outside {lo:g} to {hi:g} for {element}")
@@ -271,6 +285,11 @@ def lines(est, nds):
             continue
         if e["error"] is None:
             out.append(f"  {words:16s} {e['value']:.6e}  {e['note']}")
+            continue
+        if (e["note"] or "").startswith(OSCILLATING):
+            rel = e["error"] / abs(e["value"]) if e["value"] else math.inf
+            out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e} "
+                       f"({100 * rel:.2g} %), {e['note']}")
             continue
         if e["order"] is None:                    # the same on every level (from_levels)
             out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e}  {e['note']}")

@@ -43,8 +43,8 @@ def test_exact_on_a_power_law(p, element):
 
 def test_words_outside_the_asymptotic_range():
     sign = estimate.from_levels(_levels([4, 8, 16], lambda h: {0.25: 1.0, 0.125: 2.0,
-                                                               0.0625: 1.5}[h]), "q1")
-    assert sign["max_displacement"]["error"] is None
+                                                               0.0625: 0.5}[h]), "q1")
+    assert sign["max_displacement"]["error"] is None           # the oscillation grows
     assert "change sign" in sign["max_displacement"]["note"]
     fast = estimate.from_levels(_levels([4, 8, 16], lambda h: 1.0 + h ** 3.75), "q1")
     assert fast["max_displacement"]["error"] is None              # Hertz's N at 2, 4, 8
@@ -61,6 +61,25 @@ def test_words_outside_the_asymptotic_range():
     assert q2["energy"]["error"] is None    # (the graded beam's max |u|, q2 2, 4, 8)
     assert "order 4.27 outside 0.5 to 3.5 for q2" in q2["energy"]["note"]
     assert estimate.from_levels(_levels([8, 16], lambda h: h), "q1") is None
+
+
+def test_oscillating_levels_bounded_by_half_their_range():
+    """Differences that change sign and shrink (Stern et al. 2001, "oscillatory
+    convergence"): the error is half the range of the three levels, no order, no
+    extrapolation. make run's T (q2, N = 3, 6, 12; runs/results/estimate.md): 10.874126,
+    10.892731, 10.892027, so +- 9.30e-3 (0.085 %); its true error, against the extrapolation
+    of N = 6, 12, 24 (10.89171), is 3e-4."""
+    t = {1 / 3: 10.874126, 1 / 6: 10.892731, 1 / 12: 10.892027}
+    est = estimate.from_levels(_levels([3, 6, 12], lambda h: t[h]), "q2")
+    e = est["max_displacement"]
+    assert e["error"] == pytest.approx((10.892731 - 10.874126) / 2, rel=1e-12)
+    assert e["order"] is None and e["extrapolated"] is None and e["value"] == 10.892027
+    assert e["note"].startswith(estimate.OSCILLATING) and "(Nd = 3, 6, 12)" in e["note"]
+    assert abs(e["value"] - 10.89171) <= e["error"]
+    assert estimate.lines(est, [3, 6, 12])[1].startswith(
+        "  max |u|          1.089203e+01 +- 9.3e-03 (0.085 %), oscillating")
+    four = estimate.from_levels(_levels([2, 3, 6, 12], lambda h: t.get(h, 10.0)), "q2")
+    assert four["energy"]["error"] == pytest.approx(e["error"], rel=1e-12)   # the last 3
 
 
 def test_the_same_on_every_level():

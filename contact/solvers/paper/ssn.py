@@ -24,8 +24,8 @@ sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off);
 -ssn_pc_lag N: also keep it for N-1 steps after each set-up even if the sets changed.
 A body the foundation alone holds (contact_held: no clamped part holds its rigid motions)
 gets a spring on its contact nodes' dofs, SPRING diag_scale times the last step's relative
-change (at most 1; Levenberg-Marquardt with the term vanishing as the iteration converges,
-as in Yamashita and Fukushima's): across an open gap no node is active, and A + P + T would
+change (at most 1: a Levenberg-Marquardt term that vanishes as the iteration converges,
+so the steps become Newton's again): across an open gap no node is active, and A + P + T would
 be singular (KSP DIVERGED_INDEFINITE_PC in the first step of block_gap.yaml).
 Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
 contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
