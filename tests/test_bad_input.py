@@ -123,6 +123,10 @@ CASES = [
     ("r-zero", lambda t: ["-uzawa_r", "0"], "uzawa_r must be"),
     ("r-negative", lambda t: ["-uzawa_r", "-1e8"], "uzawa_r must be"),
     ("nd-zero", lambda t: ["-nd", "0"], "nd must be"),
+    ("mesh-refine-q1", lambda t: ["-nd", "6", "-mesh_refine", "2"],
+     "-mesh_refine 2: Nd = 6 is not a multiple of 2^2 = 4"),
+    ("mesh-refine-q2", lambda t: ["-element", "q2", "-nd", "6", "-mesh_refine", "2"],
+     "-mesh_refine 2: Nd = 6 is not a multiple of 2^2 = 4"),   # (q2 named 3, 12, 8)
     ("mat-type-baij", lambda t: ["-mat_type", "baij"], "must be an AIJ type"),
     ("nan-young", lambda t: ["-young", "nan"], "Young's modulus"),
     ("inf-r", lambda t: ["-uzawa_r", "inf"], "uzawa_r must be"),

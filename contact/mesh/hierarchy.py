@@ -58,14 +58,16 @@ MIN_CELLS_PER_RANK = 16
 CHUNK = 16384
 
 
-def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0):
+def refinements(nd, cells_per_nd, ranks, refine=-1, at_least=0, up=0):
     """k of the module docstring: Nd = Nd0 2^k. refine >= 0: that k (ValueError when Nd is
     not a multiple of 2^k); at_least: the coarse-to-fine levels asked for (as many as Nd's
-    factors of 2 allow)."""
+    factors of 2 allow); up: q2's node level (nd and refine one more than the user's, who
+    the error names: Nd >> up, refine - up)."""
     if refine >= 0:
         if nd % (1 << refine):
-            raise ValueError(f"-mesh_refine {refine}: Nd = {nd} is not a multiple of "
-                             f"2^{refine} = {1 << refine}")
+            k = refine - up
+            raise ValueError(f"-mesh_refine {k}: Nd = {nd >> up} is not a multiple of "
+                             f"2^{k} = {1 << k}")
         return refine
     cells = int(np.prod(cells_per_nd))
     k = 0
@@ -128,7 +130,7 @@ class MeshHierarchy:
             per = [int(c) for c in m.get("cells_per_nd", [1, 1, 1])] if self.kind == "box" \
                 else [sum(int(np.prod(b["cells"])) for b in m["bodies"].values()), 1, 1]
             k = refinements(nd << up, per, comm.getSize(), refine + up if refine >= 0 else -1,
-                            max(c2f_levels, 0) + up)
+                            max(c2f_levels, 0) + up, up)
             nd0 = (nd << up) >> k
         else:                  # -mesh_refine K: the file's mesh refined K times (levels)
             k, nd0 = up + max(refine, 0), nd
