@@ -326,7 +326,10 @@ class SemismoothNewton(LinearCounts, Loop):
 
     def _theta_newton(self, x, grad, p, lam):
         """Try the Newton step of Theta with the nodes x_tau = 0 held stuck (_system's
-        theta_model); True when its line search decreases Theta (xt, Axt set).
+        theta_model); True when its line search decreases Theta (xt, Axt set), False also
+        when the step is below Theta's rounding (x is stationary on that face: taken, it
+        changed nothing, and the rejected semismooth step came back until DIVERGED_MAX_IT,
+        block_shear.yaml on 2 ranks; the proximal-gradient step follows instead).
         The preconditioner is set up for it and again at the next semismooth step."""
         K, rhs = self._system(x, grad, p, lam, theta_model=True)
         self.ksp.setOperators(K)
@@ -336,7 +339,7 @@ class SemismoothNewton(LinearCounts, Loop):
         if not ok:
             return False
         t, dtheta, full = self._line_search(x)
-        return full or not self._rejected(t, dtheta)
+        return not full and not self._rejected(t, dtheta)
 
     def _decrease(self, t, dtheta, scale):
         """Theta(x + t dx) < Theta(x), from the accurate change dtheta (Subproblem.change);
