@@ -25,6 +25,7 @@ import re
 
 from contact import scene as scenes
 from contact.analysis import convergence
+from contact.analysis.estimate import OSCILLATING
 from contact.validation import harness, hertz, theory
 
 ROOT = harness.ROOT
@@ -103,9 +104,15 @@ def main(argv=None):
                     levels = ", ".join(e["levels"])
                     true = abs(e["value"] - q)
                     if e["error"] is None or e["order"] is None:
+                        bound = e["error"] is not None and (e["note"] or "").startswith(
+                            OSCILLATING)      # a bound (half the levels' range): no band
                         lines.append(f"| {el} | {nd} | {np_} | {levels} | {key} | "
-                                     f"{e['value']:.6e} | {e['note']} | {true:.2e} | – | – | "
-                                     "no number |")
+                                     f"{e['value']:.6e} | "
+                                     + (f"{e['error']:.2e} (a bound: oscillating)" if bound
+                                        else e["note"]) + f" | {true:.2e} | "
+                                     + (f"{e['error'] / true:.2f}" if bound and true > 0
+                                        else "–") + " | – | "
+                                     + ("bound" if bound else "no number") + " |")
                         continue
                     eff = e["error"] / true if true > 0 else float("inf")
                     ok = BAND[0] <= eff <= BAND[1]
