@@ -13,8 +13,9 @@ words instead of a number; except where they oscillate and converge (the differe
 sign, the last the smaller: Stern et al., "Comprehensive approach to verification and
 validation of CFD simulations", J. Fluids Eng. 123, 2001, 793-802, "oscillatory
 convergence"), where the error is bounded by half the range of the last three levels
-(their U_G = (S_U - S_L) / 2): conservative, with no order and no extrapolation. The coarse levels are solved to COARSE_RTOL (-newton_rtol of
-the coarse levels when the estimate is on): the Newton iteration converges quadratically
+(their U_G = (S_U - S_L) / 2): conservative, with no order and no extrapolation. The
+coarse levels are solved to COARSE_RTOL (-newton_rtol of the coarse levels when the
+estimate is on): the Newton iteration converges quadratically
 there, so its error is orders below the level differences used (runs/results/estimate.md
 records both).
 """

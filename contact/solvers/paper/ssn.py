@@ -25,8 +25,8 @@ sets are unchanged (Krylov solves only; with -ssn_ksp_type preonly it is off);
 A body the foundation alone holds (contact_held: no clamped part holds its rigid motions)
 gets a spring on its contact nodes' dofs, SPRING diag_scale times the last step's relative
 change (at most 1: a Levenberg-Marquardt term that vanishes as the iteration converges,
-so the steps become Newton's again): across an open gap no node is active, and A + P + T would
-be singular (KSP DIVERGED_INDEFINITE_PC in the first step of block_gap.yaml).
+so the steps become Newton's again): across an open gap no node is active, and A + P + T
+would be singular (KSP DIVERGED_INDEFINITE_PC in the first step of block_gap.yaml).
 Stop when |t dx| / |x| < rtol. The matrix is rebuilt each step (a copy of A plus the
 contact terms): contact-node data are small host arrays; vector work stays in Vec ops.
 """
