@@ -10,7 +10,7 @@ import time
 from petsc4py import PETSc
 
 from contact import adapt, options, resources, scene as scenes
-from contact.analysis.estimate import NOT_ASYMPTOTIC
+from contact.analysis.estimate import NOT_ASYMPTOTIC, relative_error
 from contact.io import output, report
 from contact.fem.discretisation import element_of
 from contact.solvers.loop import ConvergenceError, ResidualCheckError
@@ -153,8 +153,7 @@ def _solve_to_target(comm, sc, target, t0, skipped, formats, auto):
         _skipped_formats(problem, formats)
         s = report.summary(problem, time.perf_counter() - t0)
         e = (s["error_estimate"] or {}).get(key)
-        ref = e and (e["value"] if e["extrapolated"] is None else e["extrapolated"])
-        rel = e["error"] / abs(ref) if e and e["error"] is not None and ref else None
+        rel = relative_error(e) if e else None
         history.append({"nd": problem.nd, "dofs": s["dofs"], "time_s": s["time_s"]["total"],
                         "value": e["value"] if e else None, "relative_error": rel})
         PETSc.Sys.Print(f"error target: Nd = {problem.nd:4d}, {s['dofs']:>10,} dofs, "

@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from contact.solvers import residuals as res
-from contact import scene as scenes  # noqa: E402
+from contact import options, scene as scenes  # noqa: E402
 from contact.solvers.loop import ConvergenceError, ResidualCheckError  # noqa: E402
 from contact.problem import ContactProblem  # noqa: E402
 from contact.scene import SceneError  # noqa: E402
@@ -169,7 +169,8 @@ def main():
           f"{sc['material']['young']:g}, nu = {sc['material']['poisson']:g}, on the rigid "
           f"plane z = 0 with F = {F:g}, no clamped part (the translations x, y and the "
           f"rotation about z are held by friction alone), top traction (q, 0, -p), p = {p:g}, "
-          f"`-solver_mode {args.mode or sc['solver'].get('mode', 'newton')}`. Statics of a rigid block: it stays iff q <= F p = {F * p:g}. "
+          f"`-solver_mode {args.mode or options.solver_mode(sc)}`. Statics of a rigid "
+          f"block: it stays iff q <= F p = {F * p:g}. "
           f"Columns per load path: the outcome; the stick fraction (area of the contact "
           f"nodes whose tangential displacement, in the last increment, is below 1e-6 "
           f"s_ref, s_ref = F p H / G, the block's elastic shear at the limit); the area-mean total slip / s_ref; 'cone': max(|R_tau| - "

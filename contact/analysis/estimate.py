@@ -274,6 +274,13 @@ def of_run(problem, s):
     return None, f"no estimate: {why}"
 
 
+def relative_error(e):
+    """A quantity's estimated error relative to its extrapolated value (to its value where
+    there is no extrapolation: an oscillation's bound); None without an error or a scale."""
+    ref = e["value"] if e["extrapolated"] is None else e["extrapolated"]
+    return e["error"] / abs(ref) if e["error"] is not None and ref else None
+
+
 def lines(est, nds):
     """Console lines of an estimate (summary's `error_estimate`)."""
     if est is None:
@@ -288,14 +295,16 @@ def lines(est, nds):
             out.append(f"  {words:16s} {e['value']:.6e}  {e['note']}")
             continue
         if (e["note"] or "").startswith(OSCILLATING):
-            rel = e["error"] / abs(e["value"]) if e["value"] else math.inf
+            rel = relative_error(e)
+            rel = math.inf if rel is None else rel
             out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e} "
                        f"({100 * rel:.2g} %), {e['note']}")
             continue
         if e["order"] is None:                    # the same on every level (from_levels)
             out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e}  {e['note']}")
             continue
-        rel = e["error"] / abs(e["extrapolated"]) if e["extrapolated"] else math.inf
+        rel = relative_error(e)
+        rel = math.inf if rel is None else rel
         out.append(f"  {words:16s} {e['value']:.6e} +- {e['error']:.1e} ({100 * rel:.2g} %), "
                    f"order {e['order']:.2f}; extrapolated {e['extrapolated']:.6e}")
     return out
